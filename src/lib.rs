@@ -1,0 +1,9 @@
+//! portalview: light portals for area lights (Romeu Huidobro 2022), generalised to convex
+//! polygons in any orientation, with a progressive CPU path tracer and an interactive viewer.
+//!
+//! The maths of the method lives in [`light`]; domain-free sampling in [`sampling`].
+
+#![forbid(unsafe_code)]
+
+pub mod light;
+pub mod sampling;

@@ -1,0 +1,1 @@
+//! Antishadow geometry (to be written).

@@ -1,0 +1,3 @@
+//! Lights, portals, the antishadow classifier and the sampling strategies.
+
+pub mod antishadow;

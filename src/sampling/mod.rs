@@ -1,0 +1,198 @@
+//! Domain-free sampling maths: random numbers, warps with their pdfs, convex polygons and
+//! spherical polygons.
+
+pub mod polygon;
+pub mod spherical;
+
+use glam::{Vec2, Vec3};
+
+/// PCG32 (O'Neill 2014): small, fast, and seeded per pixel and pass so that an image does not
+/// depend on how work was split across threads.
+#[derive(Clone, Debug)]
+pub struct Rng {
+    state: u64,
+    inc: u64,
+}
+
+impl Rng {
+    const MULT: u64 = 6364136223846793005;
+
+    /// A generator for stream `stream` of seed `seed`; different streams are independent.
+    pub fn new(seed: u64, stream: u64) -> Self {
+        let mut rng = Rng {
+            state: 0,
+            inc: (stream << 1) | 1,
+        };
+        rng.next_u32();
+        rng.state = rng.state.wrapping_add(seed);
+        rng.next_u32();
+        rng
+    }
+
+    /// A generator keyed by several integers (seed, pixel, pass, ...), mixed by SplitMix64.
+    pub fn keyed(seed: u64, keys: &[u64]) -> Self {
+        let mut h = splitmix64(seed);
+        for &k in keys {
+            h = splitmix64(h ^ k);
+        }
+        Rng::new(h, splitmix64(h ^ 0x9E37_79B9_7F4A_7C15))
+    }
+
+    pub fn next_u32(&mut self) -> u32 {
+        let old = self.state;
+        self.state = old.wrapping_mul(Self::MULT).wrapping_add(self.inc);
+        let xorshifted = (((old >> 18) ^ old) >> 27) as u32;
+        let rot = (old >> 59) as u32;
+        xorshifted.rotate_right(rot)
+    }
+
+    /// Uniform in [0, 1).
+    pub fn uniform(&mut self) -> f32 {
+        // 24 random bits: exactly representable, never 1.0.
+        (self.next_u32() >> 8) as f32 * (1.0 / 16_777_216.0)
+    }
+
+    pub fn uniform2(&mut self) -> Vec2 {
+        Vec2::new(self.uniform(), self.uniform())
+    }
+}
+
+fn splitmix64(x: u64) -> u64 {
+    let mut z = x.wrapping_add(0x9E37_79B9_7F4A_7C15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
+/// An orthonormal basis around `n` (Duff et al. 2017), so that `local.z` maps to `n`.
+#[derive(Clone, Copy, Debug)]
+pub struct Frame {
+    pub t: Vec3,
+    pub b: Vec3,
+    pub n: Vec3,
+}
+
+impl Frame {
+    pub fn from_normal(n: Vec3) -> Self {
+        let sign = 1.0_f32.copysign(n.z);
+        let a = -1.0 / (sign + n.z);
+        let b = n.x * n.y * a;
+        Frame {
+            t: Vec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x),
+            b: Vec3::new(b, sign + n.y * n.y * a, -n.y),
+            n,
+        }
+    }
+    pub fn to_world(&self, v: Vec3) -> Vec3 {
+        self.t * v.x + self.b * v.y + self.n * v.z
+    }
+    pub fn to_local(&self, v: Vec3) -> Vec3 {
+        Vec3::new(v.dot(self.t), v.dot(self.b), v.dot(self.n))
+    }
+}
+
+/// Cosine-weighted hemisphere around +z (Malley's method on a concentric disk).
+pub fn sample_cosine_hemisphere(u: Vec2) -> Vec3 {
+    let d = sample_concentric_disk(u);
+    let z = (1.0 - d.length_squared()).max(0.0).sqrt();
+    Vec3::new(d.x, d.y, z)
+}
+
+pub fn cosine_hemisphere_pdf(cos_theta: f32) -> f32 {
+    cos_theta.max(0.0) * std::f32::consts::FRAC_1_PI
+}
+
+/// Shirley–Chiu concentric map from the unit square to the unit disk.
+pub fn sample_concentric_disk(u: Vec2) -> Vec2 {
+    let o = 2.0 * u - Vec2::ONE;
+    if o == Vec2::ZERO {
+        return Vec2::ZERO;
+    }
+    let (r, theta) = if o.x.abs() > o.y.abs() {
+        (o.x, std::f32::consts::FRAC_PI_4 * (o.y / o.x))
+    } else {
+        (
+            o.y,
+            std::f32::consts::FRAC_PI_2 - std::f32::consts::FRAC_PI_4 * (o.x / o.y),
+        )
+    };
+    r * Vec2::new(theta.cos(), theta.sin())
+}
+
+/// Uniform barycentric coordinates (b0, b1) on a triangle (the square-root map).
+pub fn sample_uniform_triangle(u: Vec2) -> Vec2 {
+    let su = u.x.sqrt();
+    Vec2::new(1.0 - su, u.y * su)
+}
+
+/// A discrete distribution over weights, sampled by inverting its CDF.
+#[derive(Clone, Debug, Default)]
+pub struct Distribution1D {
+    cdf: Vec<f32>,
+    total: f32,
+}
+
+impl Distribution1D {
+    /// Negative and non-finite weights count as zero.
+    pub fn new(weights: impl IntoIterator<Item = f32>) -> Self {
+        let mut cdf = Vec::new();
+        let mut total = 0.0f64;
+        for w in weights {
+            total += if w.is_finite() && w > 0.0 { w as f64 } else { 0.0 };
+            cdf.push(total as f32);
+        }
+        Distribution1D {
+            cdf,
+            total: total as f32,
+        }
+    }
+
+    pub fn len(&self) -> usize {
+        self.cdf.len()
+    }
+    pub fn is_empty(&self) -> bool {
+        self.total <= 0.0
+    }
+    pub fn total(&self) -> f32 {
+        self.total
+    }
+
+    /// Picks an index with probability proportional to its weight; returns it, its
+    /// probability, and `u` rescaled to [0, 1) within the chosen bin (for reuse).
+    pub fn sample(&self, u: f32) -> Option<(usize, f32, f32)> {
+        if self.is_empty() {
+            return None;
+        }
+        let target = u * self.total;
+        let i = self
+            .cdf
+            .partition_point(|&c| c <= target)
+            .min(self.cdf.len() - 1);
+        let lo = if i == 0 { 0.0 } else { self.cdf[i - 1] };
+        let w = self.cdf[i] - lo;
+        if w <= 0.0 {
+            return None;
+        }
+        let u_remapped = ((target - lo) / w).clamp(0.0, 1.0 - f32::EPSILON);
+        Some((i, w / self.total, u_remapped))
+    }
+
+    /// The probability of picking `i`.
+    pub fn pmf(&self, i: usize) -> f32 {
+        if self.is_empty() || i >= self.cdf.len() {
+            return 0.0;
+        }
+        let lo = if i == 0 { 0.0 } else { self.cdf[i - 1] };
+        (self.cdf[i] - lo) / self.total
+    }
+}
+
+/// The power heuristic (beta = 2) for two techniques with pdfs `pa` (the one used) and `pb`.
+pub fn power_heuristic(pa: f32, pb: f32) -> f32 {
+    let (a, b) = (pa * pa, pb * pb);
+    if a + b <= 0.0 || !(a + b).is_finite() {
+        if pa.is_infinite() { 1.0 } else { 0.0 }
+    } else {
+        a / (a + b)
+    }
+}

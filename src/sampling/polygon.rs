@@ -1,0 +1,461 @@
+//! Planar convex polygons: the shape of lights and portals, and the clipping that the antishadow
+//! classifier and the projection strategy need. Vertices are stored inline (no allocation), so
+//! clipping per shading point is cheap.
+
+use arrayvec::ArrayVec;
+use glam::{Vec2, Vec3};
+
+/// The most vertices a light or portal polygon may have.
+pub const MAX_POLYGON_VERTICES: usize = 12;
+/// Room for a clipped polygon: clipping a convex polygon by `k` planes adds at most `k` vertices.
+pub const MAX_CLIP_VERTICES: usize = 2 * MAX_POLYGON_VERTICES + 8;
+/// Inline vertex storage for polygons and clipping results.
+pub type Verts = ArrayVec<Vec3, MAX_CLIP_VERTICES>;
+
+/// The plane `n · p = d`, with `n` of unit length; `signed_distance > 0` is its positive side.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Plane {
+    pub n: Vec3,
+    pub d: f32,
+}
+
+impl Plane {
+    pub fn from_point_normal(p: Vec3, n: Vec3) -> Self {
+        let n = n.normalize();
+        Plane { n, d: n.dot(p) }
+    }
+
+    /// The plane through three points, oriented by their winding; `None` if they are collinear.
+    pub fn through(a: Vec3, b: Vec3, c: Vec3) -> Option<Self> {
+        let n = (b - a).cross(c - a);
+        let len = n.length();
+        // Relative to the edge lengths, so that tiny and huge scenes behave alike.
+        let scale = (b - a).length() * (c - a).length();
+        if !(len > 1e-7 * scale) {
+            return None;
+        }
+        Some(Plane::from_point_normal(a, n / len))
+    }
+
+    pub fn signed_distance(&self, p: Vec3) -> f32 {
+        self.n.dot(p) - self.d
+    }
+
+    pub fn flipped(self) -> Self {
+        Plane {
+            n: -self.n,
+            d: -self.d,
+        }
+    }
+
+    /// The ray parameter where `o + t·dir` crosses the plane, if it does so at `t > 0`.
+    pub fn intersect(&self, o: Vec3, dir: Vec3) -> Option<f32> {
+        let denom = self.n.dot(dir);
+        if denom == 0.0 {
+            return None;
+        }
+        let t = (self.d - self.n.dot(o)) / denom;
+        (t > 0.0 && t.is_finite()).then_some(t)
+    }
+}
+
+/// Why a set of points is not a usable convex polygon.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum PolygonError {
+    #[error("has {0} distinct vertices; a polygon needs at least 3")]
+    TooFewVertices(usize),
+    #[error("has {0} vertices; at most {MAX_POLYGON_VERTICES} are supported")]
+    TooManyVertices(usize),
+    #[error("has zero area")]
+    ZeroArea,
+    #[error("is not planar (a vertex lies {0:.3e} off its plane)")]
+    NonPlanar(f32),
+    #[error("is not convex")]
+    NonConvex,
+    #[error("has non-finite coordinates")]
+    NonFinite,
+}
+
+/// A planar convex polygon with counter-clockwise vertices around `normal`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ConvexPolygon {
+    vertices: Verts,
+    normal: Vec3,
+    area: f32,
+    centroid: Vec3,
+}
+
+impl ConvexPolygon {
+    /// Validates `points` (in order, either winding; the normal follows the winding).
+    pub fn new(points: &[Vec3]) -> Result<Self, PolygonError> {
+        if points.iter().any(|p| !p.is_finite()) {
+            return Err(PolygonError::NonFinite);
+        }
+        let scale = diameter(points);
+        let mut vertices = Verts::new();
+        for &p in points {
+            let is_repeat = vertices
+                .last()
+                .is_some_and(|&q: &Vec3| q.distance(p) <= 1e-6 * scale);
+            if !is_repeat {
+                if vertices.is_full() {
+                    return Err(PolygonError::TooManyVertices(points.len()));
+                }
+                vertices.push(p);
+            }
+        }
+        while vertices.len() > 1 && vertices[0].distance(vertices[vertices.len() - 1]) <= 1e-6 * scale
+        {
+            vertices.pop();
+        }
+        // Drop collinear vertices: they carry no shape and would make degenerate planes.
+        let mut i = 0;
+        while vertices.len() >= 3 && i < vertices.len() {
+            let n = vertices.len();
+            let (a, b, c) = (vertices[(i + n - 1) % n], vertices[i], vertices[(i + 1) % n]);
+            if (b - a).cross(c - b).length() <= 1e-6 * (b - a).length() * (c - b).length() {
+                vertices.remove(i);
+            } else {
+                i += 1;
+            }
+        }
+        if vertices.len() < 3 {
+            return Err(PolygonError::TooFewVertices(vertices.len()));
+        }
+        if vertices.len() > MAX_POLYGON_VERTICES {
+            return Err(PolygonError::TooManyVertices(vertices.len()));
+        }
+        let newell = newell_normal(&vertices);
+        let area = 0.5 * newell.length();
+        if !(area > 1e-10 * scale * scale) {
+            return Err(PolygonError::ZeroArea);
+        }
+        let normal = newell.normalize();
+        let mean = vertices.iter().copied().sum::<Vec3>() / vertices.len() as f32;
+        let off_plane = vertices
+            .iter()
+            .map(|&v| normal.dot(v - mean).abs())
+            .fold(0.0, f32::max);
+        if off_plane > 1e-4 * scale {
+            return Err(PolygonError::NonPlanar(off_plane));
+        }
+        let n = vertices.len();
+        for i in 0..n {
+            let (a, b, c) = (vertices[i], vertices[(i + 1) % n], vertices[(i + 2) % n]);
+            if (b - a).cross(c - b).dot(normal) < 0.0 {
+                return Err(PolygonError::NonConvex);
+            }
+        }
+        let centroid = area_centroid(&vertices, normal);
+        Ok(ConvexPolygon {
+            vertices,
+            normal,
+            area,
+            centroid,
+        })
+    }
+
+    /// Merges triangles (a quad's two, or any coplanar fan) into the one convex polygon they
+    /// tile, oriented like the triangles. Fails if they are not coplanar or do not tile a
+    /// convex polygon exactly.
+    pub fn from_triangles(triangles: &[[Vec3; 3]]) -> Result<Self, PolygonError> {
+        if triangles.len() == 1 {
+            return ConvexPolygon::new(&triangles[0]);
+        }
+        let points: Vec<Vec3> = triangles.iter().flatten().copied().collect();
+        if points.iter().any(|p| !p.is_finite()) {
+            return Err(PolygonError::NonFinite);
+        }
+        let scale = diameter(&points);
+        let summed: Vec3 = triangles
+            .iter()
+            .map(|[a, b, c]| (*b - *a).cross(*c - *a))
+            .sum();
+        let triangle_area: f32 = triangles
+            .iter()
+            .map(|[a, b, c]| 0.5 * (*b - *a).cross(*c - *a).length())
+            .sum();
+        if !(summed.length() > 1e-10 * scale * scale) {
+            return Err(PolygonError::ZeroArea);
+        }
+        let normal = summed.normalize();
+        let origin = points[0];
+        let off_plane = points
+            .iter()
+            .map(|&p| normal.dot(p - origin).abs())
+            .fold(0.0, f32::max);
+        if off_plane > 1e-4 * scale {
+            return Err(PolygonError::NonPlanar(off_plane));
+        }
+        let frame = super::Frame::from_normal(normal);
+        let flat: Vec<Vec2> = points
+            .iter()
+            .map(|&p| {
+                let l = frame.to_local(p - origin);
+                Vec2::new(l.x, l.y)
+            })
+            .collect();
+        let hull = convex_hull_2d(flat);
+        let hull_3d: Vec<Vec3> = hull
+            .iter()
+            .map(|h| origin + frame.t * h.x + frame.b * h.y)
+            .collect();
+        let polygon = ConvexPolygon::new(&hull_3d)?;
+        // Overlapping or flipped triangles, or a non-convex outline, change the area sum.
+        if (polygon.area - triangle_area).abs() > 1e-3 * polygon.area {
+            return Err(PolygonError::NonConvex);
+        }
+        Ok(polygon)
+    }
+
+    pub fn vertices(&self) -> &[Vec3] {
+        &self.vertices
+    }
+    pub fn normal(&self) -> Vec3 {
+        self.normal
+    }
+    pub fn area(&self) -> f32 {
+        self.area
+    }
+    pub fn centroid(&self) -> Vec3 {
+        self.centroid
+    }
+    pub fn plane(&self) -> Plane {
+        Plane::from_point_normal(self.centroid, self.normal)
+    }
+
+    /// The same polygon seen from the other side (reversed winding, negated normal).
+    pub fn flipped(&self) -> Self {
+        let mut vertices = self.vertices.clone();
+        vertices.reverse();
+        ConvexPolygon {
+            vertices,
+            normal: -self.normal,
+            ..*self
+        }
+    }
+
+    /// Edges `(v_i, v_{i+1})`, closing back to the first vertex.
+    pub fn edges(&self) -> impl Iterator<Item = (Vec3, Vec3)> + '_ {
+        let n = self.vertices.len();
+        (0..n).map(move |i| (self.vertices[i], self.vertices[(i + 1) % n]))
+    }
+
+    /// A uniformly distributed point on the polygon (pdf `1 / area`).
+    pub fn sample_uniform(&self, u: Vec2) -> Vec3 {
+        sample_polygon_area(&self.vertices, u)
+    }
+
+    /// Where the ray `o + t·dir` (any side) hits the polygon, if at `t > 0`.
+    pub fn intersect(&self, o: Vec3, dir: Vec3) -> Option<f32> {
+        let t = self.plane().intersect(o, dir)?;
+        self.contains_coplanar(o + t * dir).then_some(t)
+    }
+
+    /// Whether `p`, assumed on the polygon's plane, is inside it (boundary included).
+    pub fn contains_coplanar(&self, p: Vec3) -> bool {
+        self.edges()
+            .all(|(a, b)| (b - a).cross(p - a).dot(self.normal) >= 0.0)
+    }
+}
+
+/// The largest distance between two of `points` (a scale for tolerances).
+fn diameter(points: &[Vec3]) -> f32 {
+    let (lo, hi) = points
+        .iter()
+        .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), &p| {
+            (lo.min(p), hi.max(p))
+        });
+    (hi - lo).length().max(f32::MIN_POSITIVE)
+}
+
+/// Twice the vector area of a closed polygon (Newell's method).
+pub fn newell_normal(vertices: &[Vec3]) -> Vec3 {
+    let n = vertices.len();
+    (0..n)
+        .map(|i| vertices[i].cross(vertices[(i + 1) % n]))
+        .sum()
+}
+
+/// The area-weighted centroid of a convex polygon.
+fn area_centroid(vertices: &[Vec3], normal: Vec3) -> Vec3 {
+    let v0 = vertices[0];
+    let (mut sum, mut weight) = (Vec3::ZERO, 0.0);
+    for w in vertices[1..].windows(2) {
+        let a = 0.5 * (w[0] - v0).cross(w[1] - v0).dot(normal);
+        sum += a * (v0 + w[0] + w[1]) / 3.0;
+        weight += a;
+    }
+    if weight > 0.0 {
+        sum / weight
+    } else {
+        vertices.iter().copied().sum::<Vec3>() / vertices.len() as f32
+    }
+}
+
+/// A uniform point on a convex polygon: pick a fan triangle by area, reusing `u.x`.
+pub fn sample_polygon_area(vertices: &[Vec3], u: Vec2) -> Vec3 {
+    let v0 = vertices[0];
+    let fan_area = |w: &[Vec3]| (w[0] - v0).cross(w[1] - v0).length();
+    let total: f32 = vertices[1..].windows(2).map(fan_area).sum();
+    let mut target = u.x * total;
+    let triangles = vertices[1..].windows(2);
+    let count = triangles.len();
+    for (i, w) in triangles.enumerate() {
+        let a = fan_area(w);
+        if target < a || i + 1 == count {
+            let ux = if a > 0.0 { (target / a).clamp(0.0, 1.0) } else { 0.5 };
+            let b = super::sample_uniform_triangle(Vec2::new(ux, u.y));
+            return b.x * v0 + b.y * w[0] + (1.0 - b.x - b.y) * w[1];
+        }
+        target -= a;
+    }
+    v0
+}
+
+/// The area of a (possibly degenerate) convex polygon.
+pub fn polygon_area(vertices: &[Vec3]) -> f32 {
+    0.5 * newell_normal(vertices).length()
+}
+
+/// Sutherland–Hodgman against one plane: keeps the part with `signed_distance >= 0`.
+pub fn clip_by_plane(vertices: &[Vec3], plane: Plane) -> Verts {
+    let mut out = Verts::new();
+    let n = vertices.len();
+    for i in 0..n {
+        let (a, b) = (vertices[i], vertices[(i + 1) % n]);
+        let (da, db) = (plane.signed_distance(a), plane.signed_distance(b));
+        if da >= 0.0 {
+            push(&mut out, a);
+        }
+        if (da >= 0.0) != (db >= 0.0) {
+            let t = da / (da - db);
+            push(&mut out, a + t * (b - a));
+        }
+    }
+    out
+}
+
+fn push(out: &mut Verts, p: Vec3) {
+    // Capacity covers every clip this crate performs; a full buffer would mean a logic error.
+    debug_assert!(!out.is_full());
+    let _ = out.try_push(p);
+}
+
+/// Clips `subject` (coplanar with `clip`) to the inside of the convex polygon `clip`.
+pub fn clip_convex(subject: &[Vec3], clip: &ConvexPolygon) -> Verts {
+    let mut out: Verts = subject.iter().copied().collect();
+    for (a, b) in clip.edges() {
+        if out.len() < 3 {
+            out.clear();
+            break;
+        }
+        // For counter-clockwise vertices, `normal × edge` points into the polygon.
+        let inward = clip.normal().cross(b - a);
+        out = clip_by_plane(&out, Plane { n: inward, d: inward.dot(a) });
+    }
+    out
+}
+
+/// Andrew's monotone chain; counter-clockwise, without collinear points.
+fn convex_hull_2d(mut points: Vec<Vec2>) -> Vec<Vec2> {
+    points.sort_by(|a, b| a.x.total_cmp(&b.x).then(a.y.total_cmp(&b.y)));
+    points.dedup();
+    if points.len() < 3 {
+        return points;
+    }
+    let cross = |o: Vec2, a: Vec2, b: Vec2| (a - o).perp_dot(b - o);
+    let mut hull: Vec<Vec2> = Vec::with_capacity(points.len() * 2);
+    for pass in 0..2 {
+        let start = hull.len();
+        let iter: Box<dyn Iterator<Item = &Vec2>> = if pass == 0 {
+            Box::new(points.iter())
+        } else {
+            Box::new(points.iter().rev())
+        };
+        for &p in iter {
+            while hull.len() >= start + 2 && cross(hull[hull.len() - 2], hull[hull.len() - 1], p) <= 0.0
+            {
+                hull.pop();
+            }
+            hull.push(p);
+        }
+        hull.pop();
+    }
+    hull
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn square() -> Vec<Vec3> {
+        vec![
+            Vec3::new(0.0, 0.0, 0.0),
+            Vec3::new(1.0, 0.0, 0.0),
+            Vec3::new(1.0, 1.0, 0.0),
+            Vec3::new(0.0, 1.0, 0.0),
+        ]
+    }
+
+    #[test]
+    fn square_properties() {
+        let p = ConvexPolygon::new(&square()).unwrap();
+        assert!((p.area() - 1.0).abs() < 1e-6);
+        assert!(p.normal().abs_diff_eq(Vec3::Z, 1e-6));
+        assert!(p.centroid().abs_diff_eq(Vec3::new(0.5, 0.5, 0.0), 1e-6));
+        assert_eq!(p.flipped().normal(), -Vec3::Z);
+    }
+
+    #[test]
+    fn rejects_bad_polygons() {
+        let mut s = square();
+        s[2].z = 0.5;
+        assert!(matches!(ConvexPolygon::new(&s), Err(PolygonError::NonPlanar(_))));
+        let dart = [
+            Vec3::ZERO,
+            Vec3::new(2.0, 0.0, 0.0),
+            Vec3::new(1.0, 0.3, 0.0),
+            Vec3::new(1.0, 2.0, 0.0),
+        ];
+        // A dart (reflex vertex) in one orientation or the other.
+        assert_eq!(ConvexPolygon::new(&dart), Err(PolygonError::NonConvex));
+        let line = [Vec3::ZERO, Vec3::X, 2.0 * Vec3::X];
+        assert!(ConvexPolygon::new(&line).is_err());
+    }
+
+    #[test]
+    fn merges_quad_triangles() {
+        let s = square();
+        let tris = [[s[0], s[1], s[2]], [s[0], s[2], s[3]]];
+        let p = ConvexPolygon::from_triangles(&tris).unwrap();
+        assert_eq!(p.vertices().len(), 4);
+        assert!((p.area() - 1.0).abs() < 1e-5);
+        assert!(p.normal().abs_diff_eq(Vec3::Z, 1e-5));
+        // Overlapping triangles do not tile one polygon.
+        let overlap = [[s[0], s[1], s[2]], [s[0], s[1], s[2]]];
+        assert_eq!(
+            ConvexPolygon::from_triangles(&overlap),
+            Err(PolygonError::NonConvex)
+        );
+    }
+
+    #[test]
+    fn clipping() {
+        let p = ConvexPolygon::new(&square()).unwrap();
+        let half = clip_by_plane(p.vertices(), Plane::from_point_normal(Vec3::splat(0.5), Vec3::X));
+        assert!((polygon_area(&half) - 0.5).abs() < 1e-6);
+        let shifted: Vec<Vec3> = square().iter().map(|v| *v + Vec3::new(0.5, 0.5, 0.0)).collect();
+        let overlap = clip_convex(&shifted, &p);
+        assert!((polygon_area(&overlap) - 0.25).abs() < 1e-6);
+    }
+
+    #[test]
+    fn ray_intersection() {
+        let p = ConvexPolygon::new(&square()).unwrap();
+        let t = p.intersect(Vec3::new(0.5, 0.5, 2.0), -Vec3::Z).unwrap();
+        assert!((t - 2.0).abs() < 1e-6);
+        assert!(p.intersect(Vec3::new(1.5, 0.5, 2.0), -Vec3::Z).is_none());
+        assert!(p.intersect(Vec3::new(0.5, 0.5, 2.0), Vec3::Z).is_none());
+    }
+}

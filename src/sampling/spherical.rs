@@ -1,0 +1,1 @@
+//! Spherical triangles and polygons (to be written).
