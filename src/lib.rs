@@ -5,5 +5,11 @@
 
 #![forbid(unsafe_code)]
 
+pub mod app;
+pub mod bench;
+pub mod cli;
 pub mod light;
+pub mod material;
 pub mod sampling;
+pub mod render;
+pub mod scene;

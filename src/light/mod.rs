@@ -1,3 +1,87 @@
-//! Lights, portals, the antishadow classifier and the sampling strategies.
+//! Lights, portals, the antishadow classifier and the sampling strategies (METHOD.md).
 
 pub mod antishadow;
+pub mod area;
+pub mod estimator;
+pub mod portal;
+
+use serde::{Deserialize, Serialize};
+
+use antishadow::Region;
+
+/// The four strategies of the method: a closed set.
+#[derive(
+    Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize, clap::ValueEnum,
+)]
+pub enum Strategy {
+    /// Uniform on the light's area; portals ignored (the thesis's baseline).
+    Light,
+    /// Uniform on the portal's area; the ray goes on through it and may miss the light.
+    Portal,
+    /// The light's projection through the portal, sampled by solid angle.
+    Projection,
+    /// Per shading point, the technique of its antishadow region.
+    #[default]
+    Antishadow,
+}
+
+impl Strategy {
+    pub const ALL: [Strategy; 4] = [
+        Strategy::Light,
+        Strategy::Portal,
+        Strategy::Projection,
+        Strategy::Antishadow,
+    ];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Strategy::Light => "light",
+            Strategy::Portal => "portal",
+            Strategy::Projection => "projection",
+            Strategy::Antishadow => "antishadow",
+        }
+    }
+
+    pub fn from_name(name: &str) -> Option<Strategy> {
+        Strategy::ALL.into_iter().find(|s| s.name() == name)
+    }
+
+    /// The technique a portal term uses for a point in `region` (in front of the portal and
+    /// not outside its antishadow); `None` for light sampling, which ignores portals.
+    pub fn technique(self, region: Region) -> Option<Technique> {
+        match self {
+            Strategy::Light => None,
+            Strategy::Portal => Some(Technique::Portal),
+            Strategy::Projection => Some(Technique::Projection),
+            Strategy::Antishadow => match region {
+                Region::Antiumbra => Some(Technique::Light),
+                Region::Antiantumbra => Some(Technique::Portal),
+                Region::Antipenumbra => Some(Technique::Projection),
+                Region::Behind | Region::Outside => None,
+            },
+        }
+    }
+}
+
+/// How one direction towards a light is drawn.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Technique {
+    /// Uniform on the light's area.
+    Light,
+    /// Uniform on the portal's area.
+    Portal,
+    /// By solid angle of the light's projection clipped to the portal.
+    Projection,
+}
+
+impl Technique {
+    pub const ALL: [Technique; 3] = [Technique::Light, Technique::Portal, Technique::Projection];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Technique::Light => "light",
+            Technique::Portal => "portal",
+            Technique::Projection => "projection",
+        }
+    }
+}

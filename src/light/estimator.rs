@@ -1,0 +1,307 @@
+//! The estimator for one light (METHOD.md, "The estimator for one light"): a single-sample
+//! mixture of light sampling (probability `alpha`) and one technique per portal, always
+//! weighted by the pdf of the whole mixture
+//!
+//! `q(ω) = alpha · p_L(ω) + (1 − alpha) · Σ_j w_j(x) · p_{s_j}(ω | x)`.
+//!
+//! Choices made here: a light's alpha is the largest `portal_light_probability` of its portals
+//! (or the user's override); the weights `w_j` are proportional to the solid angle of the light
+//! seen through portal `j` (computed only when a point is in front of several portals), so they
+//! depend on the point and never on the sample.
+
+use arrayvec::ArrayVec;
+use glam::{Vec2, Vec3};
+
+use super::antishadow::Region;
+use super::area::{AreaLight, LightPoint};
+use super::portal::Portal;
+use super::{Strategy, Technique};
+use crate::sampling::Distribution1D;
+use crate::sampling::polygon::{Plane, Verts, clip_convex};
+use crate::sampling::spherical::SphericalPolygon;
+use crate::scene::Scene;
+
+/// The most portals one shading point can use for one light.
+pub const MAX_TERMS: usize = 8;
+
+/// One portal's part in the mixture at a shading point.
+#[derive(Clone, Debug)]
+pub struct PortalTerm {
+    pub portal: usize,
+    pub region: Region,
+    pub technique: Technique,
+    /// `w_j(x)`; the terms' weights sum to 1.
+    pub weight: f32,
+    /// The light's projection through the portal, seen from x (projection technique only).
+    pub projection: Option<SphericalPolygon>,
+}
+
+/// What the estimator knows about one light at one shading point.
+#[derive(Clone, Debug)]
+pub struct LightContext {
+    pub light: usize,
+    pub x: Vec3,
+    pub alpha: f32,
+    /// Whether `x` is in front of a portal of the light (else plain light sampling).
+    pub uses_portals: bool,
+    pub terms: ArrayVec<PortalTerm, MAX_TERMS>,
+    /// The region of `x` for the portal with the largest weight (Behind if it is in front of
+    /// none; Outside if outside all), for statistics and overlays.
+    pub region: Region,
+}
+
+/// A direction drawn towards a light, with what it sees there.
+#[derive(Clone, Copy, Debug)]
+pub struct LightSample {
+    /// Unit direction from the shading point.
+    pub wi: Vec3,
+    /// The light's point along `wi` and its distance; `None` when the direction misses the
+    /// light (a portal sample that passes beside it).
+    pub hit: Option<(LightPoint, f32)>,
+    /// Radiance arriving along `wi` (zero for a miss or the light's back).
+    pub le: Vec3,
+    /// The mixture pdf `q(wi)`, solid angle, excluding the light-selection probability.
+    pub pdf: f32,
+    pub technique: Technique,
+}
+
+/// Samples lights for a scene under one strategy.
+#[derive(Clone, Debug)]
+pub struct LightSampler {
+    strategy: Strategy,
+    by_power: Distribution1D,
+    /// Portal indices of each light.
+    portals_of: Vec<ArrayVec<usize, MAX_TERMS>>,
+    /// Alpha of each light.
+    alpha_of: Vec<f32>,
+}
+
+impl LightSampler {
+    /// `alpha_override` replaces every portal's alpha (the CLI's `--alpha`, the viewer's slider).
+    pub fn new(scene: &Scene, strategy: Strategy, alpha_override: Option<f32>) -> Self {
+        let lights = &scene.geometry.lights;
+        let mut portals_of = vec![ArrayVec::new(); lights.len()];
+        for (i, p) in scene.portals.iter().enumerate() {
+            // Past MAX_TERMS portals on one light, the rest are ignored (counted in the UI).
+            let _ = portals_of[p.light].try_push(i);
+        }
+        let alpha_of = portals_of
+            .iter()
+            .map(|ps| {
+                let authored = ps.iter().map(|&i| scene.portals[i].alpha).fold(0.0, f32::max);
+                alpha_override.unwrap_or(authored).clamp(0.0, 1.0)
+            })
+            .collect();
+        LightSampler {
+            strategy,
+            by_power: Distribution1D::new(lights.iter().map(AreaLight::power)),
+            portals_of,
+            alpha_of,
+        }
+    }
+
+    pub fn strategy(&self) -> Strategy {
+        self.strategy
+    }
+
+    /// Picks a light by power: its index and probability.
+    pub fn pick_light(&self, u: f32) -> Option<(usize, f32)> {
+        self.by_power.sample(u).map(|(i, p, _)| (i, p))
+    }
+
+    pub fn light_probability(&self, light: usize) -> f32 {
+        self.by_power.pmf(light)
+    }
+
+    /// Classifies `x` against the light's portals and fixes the mixture there.
+    pub fn context(&self, scene: &Scene, light: usize, x: Vec3) -> LightContext {
+        let mut ctx = LightContext {
+            light,
+            x,
+            alpha: self.alpha_of[light],
+            uses_portals: false,
+            terms: ArrayVec::new(),
+            region: Region::Behind,
+        };
+        if self.strategy == Strategy::Light {
+            return ctx;
+        }
+        for &j in &self.portals_of[light] {
+            let portal = &scene.portals[j];
+            let region = portal.planes.classify(x);
+            if region == Region::Behind {
+                continue;
+            }
+            ctx.uses_portals = true;
+            ctx.region = Region::Outside;
+            let Some(technique) = self.strategy.technique(region) else {
+                continue;
+            };
+            ctx.terms.push(PortalTerm {
+                portal: j,
+                region,
+                technique,
+                weight: 1.0,
+                projection: None,
+            });
+        }
+        // Weights by the light's solid angle through each portal; one term needs none.
+        let several = ctx.terms.len() > 1;
+        for term in ctx.terms.iter_mut() {
+            if several || term.technique == Technique::Projection {
+                term.projection = projection(&scene.portals[term.portal], x);
+            }
+            if several {
+                term.weight = term.projection.as_ref().map_or(0.0, |q| q.solid_angle());
+            }
+        }
+        ctx.terms.retain(|t| {
+            t.weight > 0.0 && (t.technique != Technique::Projection || t.projection.is_some())
+        });
+        let total: f32 = ctx.terms.iter().map(|t| t.weight).sum();
+        for term in ctx.terms.iter_mut() {
+            term.weight /= total;
+        }
+        if let Some(best) = ctx.terms.iter().max_by(|a, b| a.weight.total_cmp(&b.weight)) {
+            ctx.region = best.region;
+        }
+        ctx
+    }
+
+    /// Draws a direction from the mixture: the technique by `u_technique`, the direction by `u`.
+    /// `None` when the drawn share has no technique (a point outside every antishadow draws
+    /// nothing with probability `1 − alpha`) or the draw degenerates; both contribute zero.
+    pub fn sample(
+        &self,
+        scene: &Scene,
+        ctx: &LightContext,
+        u_technique: f32,
+        u: Vec2,
+    ) -> Option<LightSample> {
+        let light = &scene.geometry.lights[ctx.light];
+        let x = ctx.x;
+        let from_light = |y: LightPoint| {
+            let v = y.p - x;
+            let dist = v.length();
+            (dist > 0.0).then(|| (v / dist, Some((y, dist))))
+        };
+        let (technique, (wi, hit)) = if !ctx.uses_portals || u_technique < ctx.alpha {
+            (Technique::Light, from_light(light.sample_point(u)?)?)
+        } else {
+            // Rescale the remaining share to pick the portal term.
+            let mut v = (u_technique - ctx.alpha) / (1.0 - ctx.alpha);
+            let term = ctx.terms.iter().find(|t| {
+                let hit = v < t.weight;
+                v -= t.weight;
+                hit
+            });
+            let term = term.or(ctx.terms.last())?;
+            let portal = &scene.portals[term.portal];
+            let through = |wi: Vec3| (wi, self.light_hit(scene, ctx.light, x, wi));
+            let sampled = match term.technique {
+                Technique::Light => from_light(light.sample_point(u)?)?,
+                Technique::Portal => through((portal.polygon.sample_uniform(u) - x).try_normalize()?),
+                Technique::Projection => through(term.projection.as_ref()?.sample(u)?.0),
+            };
+            (term.technique, sampled)
+        };
+        let le = hit.map_or(Vec3::ZERO, |(y, _)| light.emitted(y.n, -wi));
+        Some(LightSample {
+            wi,
+            hit,
+            le,
+            pdf: self.pdf(scene, ctx, wi, hit),
+            technique,
+        })
+    }
+
+    /// Where the ray from the context's point along `wi` meets the light, for lights that are
+    /// one polygon (others are met by tracing).
+    pub fn light_hit(
+        &self,
+        scene: &Scene,
+        light: usize,
+        x: Vec3,
+        wi: Vec3,
+    ) -> Option<(LightPoint, f32)> {
+        let polygon = scene.geometry.lights[light].polygon.as_ref()?;
+        let t = polygon.intersect(x, wi)?;
+        Some((
+            LightPoint {
+                p: x + t * wi,
+                n: polygon.normal(),
+            },
+            t,
+        ))
+    }
+
+    /// The mixture pdf `q(wi)` for a direction whose light hit is `hit` (point and distance).
+    pub fn pdf(
+        &self,
+        scene: &Scene,
+        ctx: &LightContext,
+        wi: Vec3,
+        hit: Option<(LightPoint, f32)>,
+    ) -> f32 {
+        let light = &scene.geometry.lights[ctx.light];
+        let p_light = hit.map_or(0.0, |(y, d)| light.pdf_solid_angle(d, y.n.dot(wi)));
+        if !ctx.uses_portals {
+            return p_light;
+        }
+        let portals: f32 = ctx
+            .terms
+            .iter()
+            .map(|t| {
+                let p = match t.technique {
+                    Technique::Light => p_light,
+                    Technique::Portal => portal_pdf(&scene.portals[t.portal], ctx.x, wi),
+                    Technique::Projection => t.projection.as_ref().map_or(0.0, |q| q.pdf(wi)),
+                };
+                t.weight * p
+            })
+            .sum();
+        ctx.alpha * p_light + (1.0 - ctx.alpha) * portals
+    }
+}
+
+/// Solid-angle pdf of uniform portal sampling: `d² / (A_P |cos θ_P|)` through the portal.
+pub fn portal_pdf(portal: &Portal, x: Vec3, wi: Vec3) -> f32 {
+    let Some(t) = portal.polygon.intersect(x, wi) else {
+        return 0.0;
+    };
+    let cos = portal.polygon.normal().dot(wi).abs();
+    if cos <= 0.0 {
+        return 0.0;
+    }
+    t * t / (portal.polygon.area() * cos)
+}
+
+/// `Q(x)`: the light (clipped behind the portal plane) projected from `x` onto the portal
+/// plane and clipped to the portal, as seen from `x`.
+pub fn projection(portal: &Portal, x: Vec3) -> Option<SphericalPolygon> {
+    let q = projected_light(portal, x);
+    if q.len() < 3 {
+        return None;
+    }
+    SphericalPolygon::new(x, &q)
+}
+
+/// The vertices of `Q(x)` on the portal plane.
+pub fn projected_light(portal: &Portal, x: Vec3) -> Verts {
+    let plane: Plane = portal.polygon.plane();
+    let dx = plane.signed_distance(x);
+    if dx <= 0.0 {
+        return Verts::new();
+    }
+    let projected: Verts = portal
+        .planes
+        .light_behind_portal()
+        .iter()
+        .map(|&v| {
+            // x is in front and v on or behind the plane, so the segment crosses it once.
+            let dv = plane.signed_distance(v);
+            x + (v - x) * (dx / (dx - dv))
+        })
+        .collect();
+    clip_convex(&projected, &portal.polygon)
+}

@@ -1,0 +1,121 @@
+//! Portals: invisible convex polygons marking the opening through which a light is seen.
+
+use glam::Vec3;
+
+use super::antishadow::{AntishadowError, AntishadowPlanes};
+use super::area::AreaLight;
+use crate::sampling::polygon::{ConvexPolygon, PolygonError};
+use crate::scene::desc::PortalDesc;
+
+/// Why a portal node cannot be used; every message names the node.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum PortalError {
+    #[error("portal node '{portal}': portal_target '{target}' names no emissive mesh node")]
+    TargetMissing { portal: String, target: String },
+    #[error(
+        "portal node '{portal}': its light '{target}' is not one planar convex polygon \
+         (a portal may only target such a light)"
+    )]
+    TargetNotPolygon { portal: String, target: String },
+    #[error("portal node '{portal}': its mesh {error}")]
+    BadPolygon { portal: String, error: PolygonError },
+    #[error("portal node '{portal}': portal_light_probability {alpha} is not in [0, 1]")]
+    BadAlpha { portal: String, alpha: f32 },
+    #[error("portal node '{portal}': it lies in the plane of its light '{target}'")]
+    Coplanar { portal: String, target: String },
+    #[error("portal node '{portal}' and light '{target}': {error}")]
+    Geometry {
+        portal: String,
+        target: String,
+        error: AntishadowError,
+    },
+}
+
+/// A validated portal with its antishadow planes, ready to classify and sample.
+#[derive(Clone, Debug)]
+pub struct Portal {
+    pub name: String,
+    /// Index of its light in the scene's lights.
+    pub light: usize,
+    /// Probability of sampling the light itself instead of the portal.
+    pub alpha: f32,
+    /// The portal, its normal pointing to its front (away from the light).
+    pub polygon: ConvexPolygon,
+    /// The light polygon, its normal pointing towards the portal's side.
+    pub light_polygon: ConvexPolygon,
+    pub planes: AntishadowPlanes,
+}
+
+impl Portal {
+    pub fn new(desc: &PortalDesc, lights: &[AreaLight]) -> Result<Portal, PortalError> {
+        let portal = desc.name.clone();
+        let target = desc.target.clone();
+        if !(0.0..=1.0).contains(&desc.alpha) {
+            return Err(PortalError::BadAlpha {
+                portal,
+                alpha: desc.alpha,
+            });
+        }
+        let Some(light) = lights.iter().position(|l| l.name == desc.target) else {
+            return Err(PortalError::TargetMissing { portal, target });
+        };
+        let Some(light_polygon) = lights[light].polygon.clone() else {
+            return Err(PortalError::TargetNotPolygon { portal, target });
+        };
+        let polygon = ConvexPolygon::from_triangles(&desc.world_triangles()).map_err(|error| {
+            PortalError::BadPolygon {
+                portal: portal.clone(),
+                error,
+            }
+        })?;
+        let (polygon, light_polygon) = orient(polygon, light_polygon, lights[light].double_sided)
+            .ok_or_else(|| PortalError::Coplanar {
+                portal: portal.clone(),
+                target: target.clone(),
+            })?;
+        let planes = AntishadowPlanes::new(&polygon, &light_polygon).map_err(|error| {
+            PortalError::Geometry {
+                portal: portal.clone(),
+                target: target.clone(),
+                error,
+            }
+        })?;
+        Ok(Portal {
+            name: portal,
+            light,
+            alpha: desc.alpha,
+            polygon,
+            light_polygon,
+            planes,
+        })
+    }
+}
+
+/// Artists flip planes: the portal's front is the side away from the light's centroid, whatever
+/// its winding; a two-sided light faces the portal. Returns `None` when either centroid lies in
+/// the other's plane, so no side can be chosen.
+fn orient(
+    portal: ConvexPolygon,
+    light: ConvexPolygon,
+    light_double_sided: bool,
+) -> Option<(ConvexPolygon, ConvexPolygon)> {
+    let scale = portal.area().sqrt().max(light.area().sqrt());
+    let eps = 1e-6 * scale;
+    let light_side = portal.plane().signed_distance(light.centroid());
+    if light_side.abs() <= eps {
+        return None;
+    }
+    let portal = if light_side > 0.0 { portal.flipped() } else { portal };
+    let portal_side = light.plane().signed_distance(portal.centroid());
+    let light = if light_double_sided && portal_side < -eps {
+        light.flipped()
+    } else {
+        light
+    };
+    Some((portal, light))
+}
+
+/// Whether `x` is strictly in front of the portal's plane.
+pub fn in_front(portal: &ConvexPolygon, x: Vec3) -> bool {
+    portal.plane().signed_distance(x) > 0.0
+}

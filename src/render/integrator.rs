@@ -1,0 +1,261 @@
+//! The path tracer: next-event estimation through the portal method, combined with BSDF
+//! sampling by multiple importance sampling.
+
+use glam::Vec3;
+use std::time::Instant;
+
+use super::stats::{Stats, TIMING_STRIDE};
+use crate::light::Strategy;
+use crate::light::area::LightPoint;
+use crate::light::estimator::{LightContext, LightSample, LightSampler};
+use crate::material::Material;
+use crate::sampling::{Frame, Rng, power_heuristic};
+use crate::scene::{NO_LIGHT, Scene};
+
+/// What a render is asked to do.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RenderSettings {
+    pub strategy: Strategy,
+    /// Replaces every portal's alpha when set.
+    pub alpha: Option<f32>,
+    /// Path vertices after the camera: 1 = direct light only (the thesis's experiments).
+    pub max_depth: u32,
+    pub seed: u64,
+}
+
+impl Default for RenderSettings {
+    fn default() -> Self {
+        RenderSettings {
+            strategy: Strategy::Antishadow,
+            alpha: None,
+            max_depth: 1,
+            seed: 0,
+        }
+    }
+}
+
+/// A shading point: where light is gathered and the next direction drawn.
+struct Shading<'m> {
+    /// Ray origin just off the surface, on the side the ray came from.
+    x: Vec3,
+    /// Geometric normal facing the incoming ray.
+    ng: Vec3,
+    frame: Frame,
+    wo_local: Vec3,
+    material: &'m Material,
+}
+
+/// The previous vertex, for weighting emission that BSDF sampling finds.
+struct Previous {
+    x: Vec3,
+    /// The context of the light picked there, if any.
+    ctx: Option<LightContext>,
+    bsdf_pdf: f32,
+}
+
+pub struct Integrator<'a> {
+    scene: &'a Scene,
+    lights: LightSampler,
+    settings: RenderSettings,
+}
+
+impl<'a> Integrator<'a> {
+    pub fn new(scene: &'a Scene, settings: RenderSettings) -> Self {
+        Integrator {
+            scene,
+            lights: LightSampler::new(scene, settings.strategy, settings.alpha),
+            settings,
+        }
+    }
+
+    pub fn settings(&self) -> RenderSettings {
+        self.settings
+    }
+
+    pub fn scene(&self) -> &Scene {
+        self.scene
+    }
+
+    pub fn lights(&self) -> &LightSampler {
+        &self.lights
+    }
+
+    /// A ray origin just off the surface at `p` on the side of `n`, scaled to the coordinates.
+    pub fn offset(p: Vec3, n: Vec3) -> Vec3 {
+        p + n * (2e-4 * (1.0 + p.abs().max_element()))
+    }
+
+    /// Radiance arriving at `origin` from direction `-dir`.
+    pub fn radiance(&self, origin: Vec3, dir: Vec3, rng: &mut Rng, stats: &mut Stats) -> Vec3 {
+        let geometry = &*self.scene.geometry;
+        let mut l = Vec3::ZERO;
+        let mut beta = Vec3::ONE;
+        let (mut o, mut d) = (origin, dir);
+        let mut previous: Option<Previous> = None;
+        stats.camera_rays += 1;
+        for depth in 0..=self.settings.max_depth {
+            let Some(hit) = geometry.bvh.closest_hit(o, d, 0.0, f32::INFINITY) else {
+                break;
+            };
+            let tri = &geometry.triangles[hit.triangle as usize];
+            let (p, ns) = tri.point(hit.bary);
+            let ng = tri.geometric_normal();
+            let wo = -d;
+
+            if tri.light != NO_LIGHT {
+                let light = tri.light as usize;
+                let le = geometry.lights[light].emitted(ng, wo);
+                match &previous {
+                    None => l += beta * le,
+                    Some(prev) if le != Vec3::ZERO => {
+                        let y = LightPoint { p, n: ng };
+                        let light_pdf = self.light_pdf(prev, light, d, y, hit.t);
+                        l += beta * le * power_heuristic(prev.bsdf_pdf, light_pdf);
+                    }
+                    Some(_) => {}
+                }
+            }
+            let material = &geometry.materials[tri.material as usize];
+            if depth == self.settings.max_depth || material.is_black() {
+                break;
+            }
+            let Some(shading) = Self::shading(p, ns, ng, wo, material) else {
+                break;
+            };
+
+            // Next-event estimation through the chosen strategy.
+            let ctx = self.sample_direct(&shading, rng, stats, beta, &mut l);
+
+            // BSDF sampling: the next ray, and MIS for the light it may hit.
+            let Some(bs) = material.sample(shading.wo_local, rng.uniform(), rng.uniform2()) else {
+                break;
+            };
+            let wi = shading.frame.to_world(bs.wi);
+            if wi.dot(shading.ng) <= 0.0 {
+                break;
+            }
+            beta *= bs.f * bs.wi.z / bs.pdf;
+            if !beta.is_finite() {
+                break;
+            }
+            // Russian roulette past the second bounce keeps long paths cheap and unbiased.
+            if depth >= 2 {
+                let survive = beta.max_element().min(0.95);
+                if rng.uniform() >= survive {
+                    break;
+                }
+                beta /= survive;
+            }
+            previous = Some(Previous {
+                x: shading.x,
+                ctx,
+                bsdf_pdf: bs.pdf,
+            });
+            o = shading.x;
+            d = wi;
+            stats.bounce_rays += 1;
+        }
+        l
+    }
+
+    /// The shading frame on the side the ray came from, or `None` where the shading normal
+    /// makes the outgoing direction go below the surface.
+    fn shading<'m>(
+        p: Vec3,
+        ns: Vec3,
+        ng: Vec3,
+        wo: Vec3,
+        material: &'m Material,
+    ) -> Option<Shading<'m>> {
+        let ng = if ng.dot(wo) < 0.0 { -ng } else { ng };
+        let ns = if ns == Vec3::ZERO { ng } else { ns };
+        let ns = if ns.dot(ng) < 0.0 { -ns } else { ns };
+        let frame = Frame::from_normal(ns);
+        let wo_local = frame.to_local(wo);
+        (wo_local.z > 0.0).then(|| Shading {
+            x: Self::offset(p, ng),
+            ng,
+            frame,
+            wo_local,
+            material,
+        })
+    }
+
+    /// Picks a light, draws one sample from the strategy's mixture, traces its shadow ray and
+    /// adds the MIS-weighted contribution to `l`. Returns the light's context for later MIS.
+    fn sample_direct(
+        &self,
+        s: &Shading,
+        rng: &mut Rng,
+        stats: &mut Stats,
+        beta: Vec3,
+        l: &mut Vec3,
+    ) -> Option<LightContext> {
+        let u_pick = rng.uniform();
+        let u_technique = rng.uniform();
+        let u = rng.uniform2();
+        let (light, light_prob) = self.lights.pick_light(u_pick)?;
+        let timed = stats.shading_points() % TIMING_STRIDE == 0;
+        let start = timed.then(Instant::now);
+        let ctx = self.lights.context(self.scene, light, s.x);
+        let sample = self.lights.sample(self.scene, &ctx, u_technique, u);
+        if let Some(start) = start {
+            stats.sampling_ns += start.elapsed().as_nanos() as u64 * TIMING_STRIDE;
+        }
+        if ctx.uses_portals {
+            stats.count_region(ctx.region);
+        } else {
+            stats.no_portal += 1;
+        }
+        match &sample {
+            Some(sample) => {
+                stats.count_technique(sample.technique);
+                *l += beta * self.direct(sample, light_prob, s, stats);
+            }
+            None => stats.empty_samples += 1,
+        }
+        Some(ctx)
+    }
+
+    /// A light sample's contribution, weighted against BSDF sampling by the power heuristic.
+    fn direct(&self, sample: &LightSample, light_prob: f32, s: &Shading, stats: &mut Stats) -> Vec3 {
+        let Some((_, dist)) = sample.hit else {
+            return Vec3::ZERO;
+        };
+        if sample.le == Vec3::ZERO || !(sample.pdf > 0.0) || sample.wi.dot(s.ng) <= 0.0 {
+            return Vec3::ZERO;
+        }
+        let wi_local = s.frame.to_local(sample.wi);
+        let f = s.material.eval(s.wo_local, wi_local);
+        if f == Vec3::ZERO {
+            return Vec3::ZERO;
+        }
+        stats.shadow_rays += 1;
+        // Stop short of the light so that its own triangles do not occlude it.
+        let tmax = dist * (1.0 - 1e-4) - 1e-5;
+        if self.scene.geometry.bvh.occluded(s.x, sample.wi, 0.0, tmax) {
+            return Vec3::ZERO;
+        }
+        let light_pdf = light_prob * sample.pdf;
+        let bsdf_pdf = s.material.pdf(s.wo_local, wi_local);
+        f * sample.le * wi_local.z * power_heuristic(light_pdf, bsdf_pdf) / light_pdf
+    }
+
+    /// The light technique's pdf (selection times mixture) for the direction `d` from the
+    /// previous vertex, which reached point `y` of light `light` at distance `t`.
+    fn light_pdf(&self, prev: &Previous, light: usize, d: Vec3, y: LightPoint, t: f32) -> f32 {
+        let prob = self.lights.light_probability(light);
+        if prob <= 0.0 {
+            return 0.0;
+        }
+        let hit = Some((y, t));
+        let q = match &prev.ctx {
+            Some(ctx) if ctx.light == light => self.lights.pdf(self.scene, ctx, d, hit),
+            _ => {
+                let ctx = self.lights.context(self.scene, light, prev.x);
+                self.lights.pdf(self.scene, &ctx, d, hit)
+            }
+        };
+        prob * q
+    }
+}

@@ -1,0 +1,85 @@
+//! Counters the renderer keeps while it works: where shading points lie in the antishadow,
+//! which technique drew each light sample, and how many rays were traced.
+
+use std::ops::AddAssign;
+
+use crate::light::Technique;
+use crate::light::antishadow::Region;
+
+/// Counts over one or more passes. Merging is a sum, so totals do not depend on threading.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Stats {
+    /// Shading points (at which a light was sampled) by region, indexed like `Region::ALL`,
+    /// for the sampled light's portals.
+    pub regions: [u64; 5],
+    /// Shading points whose sampled light has no portal (or the strategy ignores portals).
+    pub no_portal: u64,
+    /// Light samples by the technique that drew them, indexed like `Technique::ALL`.
+    pub techniques: [u64; 3],
+    /// Light samples that drew nothing (the portal share at a point outside every antishadow).
+    pub empty_samples: u64,
+    pub camera_rays: u64,
+    pub bounce_rays: u64,
+    pub shadow_rays: u64,
+    /// Time spent building contexts and drawing light samples, estimated from a timed
+    /// subsample of shading points (one in `TIMING_STRIDE`).
+    pub sampling_ns: u64,
+    /// Samples per pixel accumulated in these counts.
+    pub samples: u64,
+}
+
+/// One shading point in this many is timed (timing each would cost more than sampling).
+pub const TIMING_STRIDE: u64 = 16;
+
+impl Stats {
+    pub fn count_region(&mut self, region: Region) {
+        if let Some(i) = Region::ALL.iter().position(|&r| r == region) {
+            self.regions[i] += 1;
+        }
+    }
+
+    pub fn count_technique(&mut self, technique: Technique) {
+        if let Some(i) = Technique::ALL.iter().position(|&t| t == technique) {
+            self.techniques[i] += 1;
+        }
+    }
+
+    pub fn shading_points(&self) -> u64 {
+        self.regions.iter().sum::<u64>() + self.no_portal
+    }
+
+    /// Share of shading points in `region`, in [0, 1].
+    pub fn region_share(&self, region: Region) -> f64 {
+        let total = self.shading_points();
+        match Region::ALL.iter().position(|&r| r == region) {
+            Some(i) if total > 0 => self.regions[i] as f64 / total as f64,
+            _ => 0.0,
+        }
+    }
+
+    pub fn rays(&self) -> u64 {
+        self.camera_rays + self.bounce_rays + self.shadow_rays
+    }
+
+    pub fn light_samples(&self) -> u64 {
+        self.techniques.iter().sum::<u64>() + self.empty_samples
+    }
+}
+
+impl AddAssign for Stats {
+    fn add_assign(&mut self, o: Stats) {
+        for (a, b) in self.regions.iter_mut().zip(o.regions) {
+            *a += b;
+        }
+        for (a, b) in self.techniques.iter_mut().zip(o.techniques) {
+            *a += b;
+        }
+        self.no_portal += o.no_portal;
+        self.empty_samples += o.empty_samples;
+        self.camera_rays += o.camera_rays;
+        self.bounce_rays += o.bounce_rays;
+        self.shadow_rays += o.shadow_rays;
+        self.sampling_ns += o.sampling_ns;
+        self.samples += o.samples;
+    }
+}

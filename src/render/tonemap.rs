@@ -1,0 +1,109 @@
+//! From linear radiance to display: exposure, sRGB encoding, a false-colour scale, and the
+//! image files the CLI writes.
+
+use glam::Vec3;
+use std::path::Path;
+
+/// Linear radiance times `2^exposure`, clamped and sRGB-encoded to 8 bits.
+pub fn to_srgb8(c: Vec3, exposure: f32) -> [u8; 3] {
+    let c = c * exposure.exp2();
+    [c.x, c.y, c.z].map(|v| (encode_srgb(v.clamp(0.0, 1.0)) * 255.0 + 0.5) as u8)
+}
+
+fn encode_srgb(v: f32) -> f32 {
+    if v <= 0.003_130_8 {
+        12.92 * v
+    } else {
+        1.055 * v.powf(1.0 / 2.4) - 0.055
+    }
+}
+
+/// A perceptual blue–green–yellow–red ramp for `t` in [0, 1] (for luminance and error maps).
+pub fn false_colour(t: f32) -> [u8; 3] {
+    const STOPS: [[f32; 3]; 5] = [
+        [0.05, 0.03, 0.25],
+        [0.1, 0.35, 0.75],
+        [0.15, 0.7, 0.45],
+        [0.95, 0.85, 0.2],
+        [0.85, 0.15, 0.1],
+    ];
+    let t = if t.is_finite() { t.clamp(0.0, 1.0) } else { 0.0 } * (STOPS.len() - 1) as f32;
+    let i = (t.floor() as usize).min(STOPS.len() - 2);
+    let f = t - i as f32;
+    let (a, b) = (STOPS[i], STOPS[i + 1]);
+    [0, 1, 2].map(|k| ((a[k] + (b[k] - a[k]) * f) * 255.0 + 0.5) as u8)
+}
+
+/// Writes `pixels` (row-major, linear radiance) to `.exr` (linear, 32-bit float) or `.png`
+/// (tone-mapped sRGB), by the file's extension.
+pub fn write_image(
+    path: &Path,
+    width: u32,
+    height: u32,
+    pixels: &[Vec3],
+    exposure: f32,
+) -> anyhow::Result<()> {
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
+    let tmp = temporary_sibling(path);
+    match ext.as_deref() {
+        Some("exr") => {
+            exr::prelude::write_rgb_file(&tmp, width as usize, height as usize, |x, y| {
+                let c = pixels[y * width as usize + x];
+                (c.x, c.y, c.z)
+            })
+            .map_err(|e| anyhow::anyhow!("{}: cannot write EXR: {e}", path.display()))?;
+        }
+        Some("png") => {
+            let bytes: Vec<u8> = pixels.iter().flat_map(|&c| to_srgb8(c, exposure)).collect();
+            image::save_buffer_with_format(
+                &tmp,
+                &bytes,
+                width,
+                height,
+                image::ColorType::Rgb8,
+                image::ImageFormat::Png,
+            )
+            .map_err(|e| anyhow::anyhow!("{}: cannot write PNG: {e}", path.display()))?;
+        }
+        _ => anyhow::bail!(
+            "{}: unknown image type (use .exr for linear radiance or .png)",
+            path.display()
+        ),
+    }
+    std::fs::rename(&tmp, path)
+        .map_err(|e| anyhow::anyhow!("{}: cannot replace the file: {e}", path.display()))
+}
+
+/// Reads an `.exr` as linear RGB: width, height and pixels.
+pub fn read_exr(path: &Path) -> anyhow::Result<(u32, u32, Vec<Vec3>)> {
+    use exr::prelude::*;
+    let image = read_first_rgba_layer_from_file(
+        path,
+        |resolution, _| {
+            (
+                resolution.width(),
+                vec![Vec3::ZERO; resolution.width() * resolution.height()],
+            )
+        },
+        |(width, pixels), position, (r, g, b, _a): (f32, f32, f32, f32)| {
+            pixels[position.y() * *width + position.x()] = Vec3::new(r, g, b);
+        },
+    )
+    .map_err(|e| anyhow::anyhow!("{}: cannot read EXR: {e}", path.display()))?;
+    let size = image.layer_data.size;
+    let (_, pixels) = image.layer_data.channel_data.pixels;
+    Ok((size.width() as u32, size.height() as u32, pixels))
+}
+
+/// `dir/.name.tmp`: written first, then renamed over the target, so a crash never leaves a
+/// half-written file in its place.
+pub fn temporary_sibling(path: &Path) -> std::path::PathBuf {
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    path.with_file_name(format!(".{name}.tmp"))
+}

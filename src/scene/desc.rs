@@ -1,0 +1,113 @@
+//! The scene as authored: what glTF files and the built-in scenes both produce, before any
+//! validation or acceleration. World-space geometry, names kept for error messages.
+
+use glam::{Mat4, Vec3};
+
+/// A glTF metallic-roughness material, reduced to what the renderer uses.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MaterialDesc {
+    pub name: String,
+    pub base_color: Vec3,
+    pub metallic: f32,
+    pub roughness: f32,
+    /// glTF `emissiveFactor`.
+    pub emissive_factor: Vec3,
+    /// `KHR_materials_emissive_strength` (1 when absent).
+    pub emissive_strength: f32,
+    pub double_sided: bool,
+}
+
+impl MaterialDesc {
+    pub fn diffuse(name: &str, base_color: Vec3) -> Self {
+        MaterialDesc {
+            name: name.to_owned(),
+            base_color,
+            metallic: 0.0,
+            roughness: 1.0,
+            emissive_factor: Vec3::ZERO,
+            emissive_strength: 1.0,
+            double_sided: true,
+        }
+    }
+
+    /// An emitter of radiance `radiance` W/(sr·m²), stored glTF-style as a factor in [0, 1]
+    /// times a strength.
+    pub fn emitter(name: &str, radiance: Vec3, double_sided: bool) -> Self {
+        let strength = radiance.max_element().max(1.0);
+        MaterialDesc {
+            emissive_factor: radiance / strength,
+            emissive_strength: strength,
+            double_sided,
+            ..MaterialDesc::diffuse(name, Vec3::ZERO)
+        }
+    }
+
+    /// Emitted radiance in W/(sr·m²): `emissiveFactor × emissive_strength`.
+    pub fn radiance(&self) -> Vec3 {
+        self.emissive_factor * self.emissive_strength
+    }
+
+    pub fn is_emissive(&self) -> bool {
+        self.radiance().max_element() > 0.0
+    }
+}
+
+/// One glTF primitive of one node, flattened into world space.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MeshDesc {
+    /// The name of the node it came from (portals name their light by it).
+    pub node_name: String,
+    pub material: usize,
+    pub positions: Vec<Vec3>,
+    /// Per-vertex shading normals, same length as `positions` (computed when absent).
+    pub normals: Vec<Vec3>,
+    pub indices: Vec<[u32; 3]>,
+}
+
+/// A portal as authored: a node whose `extras` name its light.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PortalDesc {
+    pub name: String,
+    /// Node name of the emissive mesh it opens onto (`extras.portal_target`).
+    pub target: String,
+    /// `extras.portal_light_probability`: the probability of sampling the light itself.
+    pub alpha: f32,
+    /// The portal mesh's triangles in the node's local space.
+    pub local_triangles: Vec<[Vec3; 3]>,
+    /// The node's world transform (its parents' times its own).
+    pub world_from_local: Mat4,
+    /// Where it came from in the file, so that saving rewrites only this node.
+    pub node_index: Option<usize>,
+}
+
+impl PortalDesc {
+    pub fn world_triangles(&self) -> Vec<[Vec3; 3]> {
+        self.local_triangles
+            .iter()
+            .map(|t| t.map(|p| self.world_from_local.transform_point3(p)))
+            .collect()
+    }
+}
+
+/// A perspective camera looking from `eye` at `target`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CameraDesc {
+    pub eye: Vec3,
+    pub target: Vec3,
+    pub up: Vec3,
+    /// Vertical field of view in radians.
+    pub yfov: f32,
+    /// Width over height.
+    pub aspect: f32,
+}
+
+/// A whole scene as authored.
+#[derive(Clone, Debug, PartialEq, Default)]
+pub struct SceneDesc {
+    pub name: String,
+    pub materials: Vec<MaterialDesc>,
+    pub meshes: Vec<MeshDesc>,
+    pub portals: Vec<PortalDesc>,
+    /// The file's first camera, if any (else one is made to frame the scene).
+    pub camera: Option<CameraDesc>,
+}

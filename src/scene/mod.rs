@@ -1,0 +1,244 @@
+//! Scenes: what is authored (glTF, built-ins), validated and made ready to trace.
+
+pub mod builtin;
+pub mod bvh;
+pub mod camera;
+pub mod desc;
+pub mod gltf_io;
+
+use glam::{Vec2, Vec3};
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use crate::light::area::AreaLight;
+use crate::light::portal::{Portal, PortalError};
+use crate::material::Material;
+use bvh::Bvh;
+use camera::Camera;
+use desc::{PortalDesc, SceneDesc};
+
+/// Why a scene cannot be used.
+#[derive(Debug, thiserror::Error)]
+pub enum SceneError {
+    #[error(transparent)]
+    Gltf(#[from] gltf_io::GltfError),
+    #[error("{file}: {error}")]
+    Portal { file: String, error: PortalError },
+    #[error("{file}: mesh node '{node}' references material {material}, which does not exist")]
+    BadMaterial {
+        file: String,
+        node: String,
+        material: usize,
+    },
+    #[error("{file}: mesh node '{node}': vertex index {index} is out of range")]
+    BadIndex {
+        file: String,
+        node: String,
+        index: u32,
+    },
+    #[error("unknown built-in scene '{0}' (built-ins: {names})", names = builtin::NAMES.join(", "))]
+    UnknownBuiltin(String),
+}
+
+/// One triangle with its shading normals, material and light.
+#[derive(Clone, Copy, Debug)]
+pub struct SceneTriangle {
+    pub p: [Vec3; 3],
+    pub n: [Vec3; 3],
+    pub material: u32,
+    /// Index of its area light, or `NO_LIGHT`.
+    pub light: u32,
+}
+
+pub const NO_LIGHT: u32 = u32::MAX;
+
+impl SceneTriangle {
+    /// Position and interpolated shading normal at barycentrics (u on vertex 1, v on vertex 2).
+    pub fn point(&self, bary: Vec2) -> (Vec3, Vec3) {
+        let w = 1.0 - bary.x - bary.y;
+        let p = w * self.p[0] + bary.x * self.p[1] + bary.y * self.p[2];
+        let n = (w * self.n[0] + bary.x * self.n[1] + bary.y * self.n[2]).normalize_or_zero();
+        (p, n)
+    }
+
+    /// Unit geometric normal, front side by winding.
+    pub fn geometric_normal(&self) -> Vec3 {
+        (self.p[1] - self.p[0])
+            .cross(self.p[2] - self.p[0])
+            .normalize_or_zero()
+    }
+}
+
+/// Everything that does not change while portals are edited: triangles, materials, lights, BVH.
+pub struct Geometry {
+    pub triangles: Vec<SceneTriangle>,
+    pub materials: Vec<Material>,
+    pub lights: Vec<AreaLight>,
+    pub bvh: Bvh,
+    pub bounds: (Vec3, Vec3),
+}
+
+impl Geometry {
+    /// The scene's size, for ray offsets and tolerances.
+    pub fn scale(&self) -> f32 {
+        (self.bounds.1 - self.bounds.0).length().max(1e-3)
+    }
+}
+
+/// A validated scene: shared geometry plus its portals and camera.
+#[derive(Clone)]
+pub struct Scene {
+    pub name: String,
+    /// What it was built from; portal edits change `desc.portals` and rebuild `portals`.
+    pub desc: Arc<SceneDesc>,
+    pub geometry: Arc<Geometry>,
+    pub portals: Vec<Portal>,
+    pub camera: Camera,
+    /// The glTF file it was loaded from, if any (where Save writes).
+    pub source: Option<PathBuf>,
+}
+
+impl Scene {
+    /// Validates `desc`; `file` names the source in error messages.
+    pub fn from_desc(desc: SceneDesc, file: &str) -> Result<Scene, SceneError> {
+        let mut triangles = Vec::new();
+        let mut lights = Vec::new();
+        let materials: Vec<Material> = desc.materials.iter().map(Material::from_desc).collect();
+        for mesh in &desc.meshes {
+            let Some(material) = materials.get(mesh.material) else {
+                return Err(SceneError::BadMaterial {
+                    file: file.to_owned(),
+                    node: mesh.node_name.clone(),
+                    material: mesh.material,
+                });
+            };
+            let light = if material.is_emissive() {
+                lights.len() as u32
+            } else {
+                NO_LIGHT
+            };
+            let mut corners = Vec::with_capacity(mesh.indices.len());
+            for tri in &mesh.indices {
+                let fetch = |i: u32| {
+                    let k = i as usize;
+                    match (mesh.positions.get(k), mesh.normals.get(k)) {
+                        (Some(&p), Some(&n)) => Ok((p, n)),
+                        _ => Err(SceneError::BadIndex {
+                            file: file.to_owned(),
+                            node: mesh.node_name.clone(),
+                            index: i,
+                        }),
+                    }
+                };
+                let [(p0, n0), (p1, n1), (p2, n2)] =
+                    [fetch(tri[0])?, fetch(tri[1])?, fetch(tri[2])?];
+                corners.push([p0, p1, p2]);
+                triangles.push(SceneTriangle {
+                    p: [p0, p1, p2],
+                    n: [n0, n1, n2],
+                    material: mesh.material as u32,
+                    light,
+                });
+            }
+            if light != NO_LIGHT {
+                lights.push(AreaLight::new(
+                    mesh.node_name.clone(),
+                    material.emission,
+                    material.double_sided,
+                    &corners,
+                ));
+            }
+        }
+        let bounds = triangles
+            .iter()
+            .flat_map(|t| t.p)
+            .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), p| {
+                (lo.min(p), hi.max(p))
+            });
+        let bounds = if triangles.is_empty() {
+            (Vec3::splat(-1.0), Vec3::splat(1.0))
+        } else {
+            bounds
+        };
+        let corners: Vec<[Vec3; 3]> = triangles.iter().map(|t| t.p).collect();
+        let geometry = Arc::new(Geometry {
+            bvh: Bvh::build(&corners),
+            triangles,
+            materials,
+            lights,
+            bounds,
+        });
+        let camera = match desc.camera {
+            Some(c) => Camera::from_desc(&c),
+            None => Camera::framing(bounds.0, bounds.1, 4.0 / 3.0),
+        };
+        let portals = validate_portals(&desc.portals, &geometry.lights, file)?;
+        Ok(Scene {
+            name: desc.name.clone(),
+            desc: Arc::new(desc),
+            geometry,
+            portals,
+            camera,
+            source: None,
+        })
+    }
+
+    /// Loads a `.gltf`/`.glb` file.
+    pub fn load(path: &Path) -> Result<Scene, SceneError> {
+        let desc = gltf_io::load_gltf(path)?;
+        let mut scene = Scene::from_desc(desc, &path.display().to_string())?;
+        scene.source = Some(path.to_owned());
+        Ok(scene)
+    }
+
+    /// A built-in scene by name, or a glTF file by path.
+    pub fn open(name_or_path: &str) -> Result<Scene, SceneError> {
+        match builtin::desc(name_or_path) {
+            Some(desc) => Scene::from_desc(desc, name_or_path),
+            None if Path::new(name_or_path).exists() || name_or_path.contains('.') => {
+                Scene::load(Path::new(name_or_path))
+            }
+            None => Err(SceneError::UnknownBuiltin(name_or_path.to_owned())),
+        }
+    }
+
+    /// The same geometry with other portals (an edit); the BVH is shared, not rebuilt.
+    pub fn with_portals(&self, portals: Vec<PortalDesc>) -> Result<Scene, SceneError> {
+        let file = self.file_label();
+        let validated = validate_portals(&portals, &self.geometry.lights, &file)?;
+        let desc = SceneDesc {
+            portals,
+            ..(*self.desc).clone()
+        };
+        Ok(Scene {
+            desc: Arc::new(desc),
+            portals: validated,
+            ..self.clone()
+        })
+    }
+
+    /// How the scene is named in messages: its file, else its name.
+    pub fn file_label(&self) -> String {
+        match &self.source {
+            Some(p) => p.display().to_string(),
+            None => self.name.clone(),
+        }
+    }
+}
+
+fn validate_portals(
+    descs: &[PortalDesc],
+    lights: &[AreaLight],
+    file: &str,
+) -> Result<Vec<Portal>, SceneError> {
+    descs
+        .iter()
+        .map(|d| {
+            Portal::new(d, lights).map_err(|error| SceneError::Portal {
+                file: file.to_owned(),
+                error,
+            })
+        })
+        .collect()
+}
+

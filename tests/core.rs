@@ -1,0 +1,279 @@
+//! The core renderer: BVH against brute force, closed-form irradiance, determinism across
+//! thread counts, the furnace, and BSDF energy. Run in release (`cargo test --release`).
+
+mod common;
+
+use common::*;
+use glam::{Vec2, Vec3};
+use portalview::light::Strategy;
+use portalview::material::Material;
+use portalview::render::integrator::{Integrator, RenderSettings};
+use portalview::render::render;
+use portalview::render::stats::Stats;
+use portalview::sampling::{Rng, sample_cosine_hemisphere};
+use portalview::scene::Scene;
+use portalview::scene::bvh::Bvh;
+use portalview::scene::desc::{MaterialDesc, SceneDesc};
+
+/// Brute-force closest hit over all triangles (Möller–Trumbore in f64).
+fn brute_force(tris: &[[Vec3; 3]], o: Vec3, d: Vec3) -> Option<(f32, usize)> {
+    let mut best: Option<(f64, usize)> = None;
+    for (i, t) in tris.iter().enumerate() {
+        let [a, b, c] = t.map(|v| v.as_dvec3());
+        let (o, d) = (o.as_dvec3(), d.as_dvec3());
+        let (e1, e2) = (b - a, c - a);
+        let p = d.cross(e2);
+        let det = e1.dot(p);
+        if det.abs() < 1e-12 {
+            continue;
+        }
+        let s = o - a;
+        let u = s.dot(p) / det;
+        let q = s.cross(e1);
+        let v = d.dot(q) / det;
+        let t = e2.dot(q) / det;
+        if u >= 0.0 && v >= 0.0 && u + v <= 1.0 && t > 0.0 && best.is_none_or(|(bt, _)| t < bt) {
+            best = Some((t, i));
+        }
+    }
+    best.map(|(t, i)| (t as f32, i))
+}
+
+/// Makes material `index` a pure Lambertian (glTF materials carry a specular layer).
+fn lambertian(mut scene: Scene, index: usize, albedo: f32) -> Scene {
+    let mut geometry = std::sync::Arc::try_unwrap(scene.geometry).ok().unwrap();
+    geometry.materials[index] = Material::lambertian(Vec3::splat(albedo));
+    scene.geometry = std::sync::Arc::new(geometry);
+    scene
+}
+
+fn random_point(rng: &mut Rng, scale: f32) -> Vec3 {
+    (Vec3::new(rng.uniform(), rng.uniform(), rng.uniform()) * 2.0 - 1.0) * scale
+}
+
+#[test]
+fn bvh_matches_brute_force_on_random_rays() {
+    let mut rng = Rng::new(7, 1);
+    let mut tris: Vec<[Vec3; 3]> = (0..600)
+        .map(|_| {
+            let c = random_point(&mut rng, 5.0);
+            [c, c + random_point(&mut rng, 0.8), c + random_point(&mut rng, 0.8)]
+        })
+        .collect();
+    // Degenerate triangles: a point, a line, and a sliver must never be hit or crash.
+    tris.push([Vec3::ONE; 3]);
+    tris.push([Vec3::ZERO, Vec3::X, 2.0 * Vec3::X]);
+    tris.push([Vec3::ZERO, Vec3::new(1e-9, 0.0, 0.0), Vec3::Y]);
+    let bvh = Bvh::build(&tris);
+    let mut agree = 0;
+    for _ in 0..4000 {
+        let o = random_point(&mut rng, 8.0);
+        let d = (random_point(&mut rng, 1.0)).normalize_or(Vec3::X);
+        let got = bvh.closest_hit(o, d, 0.0, f32::INFINITY);
+        let want = brute_force(&tris, o, d);
+        match (got, want) {
+            (Some(h), Some((t, i))) => {
+                // Ties on shared hits may pick either triangle; the distance must agree.
+                assert!((h.t - t).abs() <= 1e-3 * t.max(1.0), "t {} vs {t}", h.t);
+                if h.triangle as usize == i {
+                    let tri = tris[i];
+                    let b = h.bary;
+                    let p = (1.0 - b.x - b.y) * tri[0] + b.x * tri[1] + b.y * tri[2];
+                    assert!(p.distance(o + h.t * d) < 1e-3, "barycentrics off");
+                }
+                agree += 1;
+            }
+            (None, None) => agree += 1,
+            (got, want) => {
+                // Only grazing hits on an edge may differ between the two tests.
+                let t = got.map(|h| h.t).or(want.map(|w| w.0)).unwrap_or(0.0);
+                let p = o + t * d;
+                let near_edge = tris.iter().any(|tri| {
+                    (0..3).any(|k| {
+                        let (a, b) = (tri[k], tri[(k + 1) % 3]);
+                        let ab = b - a;
+                        let s = ((p - a).dot(ab) / ab.length_squared()).clamp(0.0, 1.0);
+                        (a + s * ab).distance(p) < 1e-3
+                    })
+                });
+                assert!(near_edge, "BVH {got:?} vs brute force {want:?}");
+            }
+        }
+        let occluded = bvh.occluded(o, d, 0.0, 1e6);
+        assert_eq!(occluded, bvh.closest_hit(o, d, 0.0, 1e6).is_some());
+    }
+    assert!(agree > 3900);
+}
+
+#[test]
+fn bvh_handles_empty_scenes_and_rays_along_edges() {
+    let empty = Bvh::build(&[]);
+    assert!(empty.closest_hit(Vec3::ZERO, Vec3::X, 0.0, f32::INFINITY).is_none());
+    assert!(!empty.occluded(Vec3::ZERO, Vec3::X, 0.0, 1.0));
+    // A quad split along its diagonal: a ray straight down the diagonal must hit exactly once,
+    // and a ray lying in the quad's plane along an edge must not report a bogus hit distance.
+    let (a, b, c, d) = (Vec3::ZERO, Vec3::X, Vec3::new(1.0, 0.0, 1.0), Vec3::Z);
+    let bvh = Bvh::build(&[[a, b, c], [a, c, d]]);
+    let hit = bvh.closest_hit(Vec3::new(0.5, 1.0, 0.5), -Vec3::Y, 0.0, f32::INFINITY);
+    assert!(hit.is_some_and(|h| (h.t - 1.0).abs() < 1e-5), "{hit:?}");
+    let along = bvh.closest_hit(Vec3::new(-1.0, 0.0, 0.0), Vec3::X, 0.0, f32::INFINITY);
+    assert!(along.is_none_or(|h| h.t.is_finite() && h.t >= 0.0));
+}
+
+/// The radiance leaving a diffuse floor point, estimated by `n` camera-like rays that hit it.
+fn floor_radiance(scene: &Scene, strategy: Strategy, x: Vec3, n: usize, seed: u64) -> (f64, f64) {
+    let integrator = Integrator::new(
+        scene,
+        RenderSettings {
+            strategy,
+            seed,
+            ..RenderSettings::default()
+        },
+    );
+    let eye = x + Vec3::new(0.3, 1.0, 0.2);
+    let mut stats = Stats::default();
+    let values: Vec<f64> = (0..n)
+        .map(|i| {
+            let mut rng = Rng::keyed(seed, &[i as u64]);
+            integrator.radiance(eye, (x - eye).normalize(), &mut rng, &mut stats).x as f64
+        })
+        .collect();
+    mean_and_se(&values)
+}
+
+/// Lambert's formula against the renderer, for tilted lights wholly above the tangent plane.
+/// Tolerance: 4 standard errors of the estimator, the standard error from the sample variance.
+#[test]
+fn diffuse_plane_matches_lambert_irradiance() {
+    let (albedo, le) = (0.8, 5.0);
+    let configs = [
+        (Vec3::new(0.0, 2.0, 0.0), Vec3::new(0.0, -1.0, 0.0), 0.5),
+        (Vec3::new(1.0, 1.5, -0.5), Vec3::new(-0.6, -1.0, 0.3), 0.4),
+        (Vec3::new(-1.5, 0.8, 0.7), Vec3::new(1.0, -0.4, -0.2), 0.3),
+        (Vec3::new(0.5, 3.0, 2.0), Vec3::new(0.1, -0.2, -1.0), 0.8),
+    ];
+    for (i, (c, n, h)) in configs.into_iter().enumerate() {
+        let light = square(c, n, h);
+        let scene = Scene::from_desc(floor_and_light(albedo, light.clone(), le), "test").unwrap();
+        let scene = lambertian(scene, 0, albedo);
+        let x = Vec3::new(0.1, 0.0, -0.2);
+        let expected = albedo as f64 / std::f64::consts::PI
+            * lambert_irradiance(x, Vec3::Y, &light, le) as f64;
+        let (mean, se) = floor_radiance(&scene, Strategy::Light, x, 40_000, i as u64);
+        assert!(
+            (mean - expected).abs() <= 4.0 * se,
+            "config {i}: {mean} ± {se} vs Lambert {expected}"
+        );
+        // Negative case: a 3% error in the expected value is caught by the same test.
+        if i == 0 {
+            assert!((mean - 1.03 * expected).abs() > 4.0 * se, "test cannot detect a 3% bias");
+        }
+    }
+}
+
+fn small_scene() -> Scene {
+    Scene::open("fig8c").unwrap()
+}
+
+#[test]
+fn same_image_with_one_and_two_threads() {
+    let scene = small_scene();
+    let settings = RenderSettings {
+        seed: 42,
+        max_depth: 3,
+        ..RenderSettings::default()
+    };
+    let render_with = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        pool.install(|| render(&Integrator::new(&scene, settings), 48, 36, 3))
+    };
+    let (one, stats_one) = render_with(1);
+    let (two, stats_two) = render_with(2);
+    assert_eq!(one.mean(), two.mean());
+    assert_eq!(stats_one.shadow_rays, stats_two.shadow_rays);
+    assert!(one.mean().iter().any(|c| c.max_element() > 0.0), "image is black");
+}
+
+/// A UV sphere's triangles (outward winding unless `inward`).
+fn sphere(center: Vec3, r: f32, inward: bool) -> Vec<Vec<Vec3>> {
+    let (nu, nv) = (32, 16);
+    let p = |i: usize, j: usize| {
+        let (phi, theta) = (
+            std::f32::consts::TAU * i as f32 / nu as f32,
+            std::f32::consts::PI * j as f32 / nv as f32,
+        );
+        center + r * Vec3::new(theta.sin() * phi.cos(), theta.cos(), theta.sin() * phi.sin())
+    };
+    let mut tris = vec![];
+    for i in 0..nu {
+        for j in 0..nv {
+            let (a, b, c, d) = (p(i, j), p(i + 1, j), p(i + 1, j + 1), p(i, j + 1));
+            for t in [vec![a, b, c], vec![a, c, d]] {
+                if t[0].distance(t[1]) < 1e-6 || t[1].distance(t[2]) < 1e-6 || t[0].distance(t[2]) < 1e-6 {
+                    continue;
+                }
+                // [a, b, c] winds outward.
+                tris.push(if inward { t.into_iter().rev().collect() } else { t });
+            }
+        }
+    }
+    tris
+}
+
+/// A white Lambertian sphere inside a closed emitter of radiance 1: every pixel sees 1.
+/// Tolerance: 4 standard errors of the image mean (from the per-pixel variances).
+#[test]
+fn white_lambertian_furnace_returns_one() {
+    let mut white = MaterialDesc::diffuse("white", Vec3::ONE);
+    white.roughness = 1.0;
+    let desc = SceneDesc {
+        name: "furnace".into(),
+        materials: vec![white, MaterialDesc::emitter("sky", Vec3::ONE, false)],
+        meshes: vec![
+            flat("ball", 0, &sphere(Vec3::ZERO, 1.0, false)),
+            flat("sky", 1, &sphere(Vec3::ZERO, 10.0, true)),
+        ],
+        portals: vec![],
+        camera: camera(Vec3::new(0.0, 0.0, 4.0), Vec3::ZERO),
+    };
+    let mut scene = lambertian(Scene::from_desc(desc, "furnace").unwrap(), 0, 1.0);
+    // The sky only emits: a glTF emitter would also reflect through its specular layer.
+    let mut geometry = std::sync::Arc::try_unwrap(scene.geometry).ok().unwrap();
+    geometry.materials[1].specular = 0.0;
+    scene.geometry = std::sync::Arc::new(geometry);
+    let integrator = Integrator::new(&scene, RenderSettings { seed: 3, ..Default::default() });
+    let (film, _) = render(&integrator, 32, 32, 64);
+    let mean = film.mean();
+    let var = film.variance_of_mean();
+    let n = mean.len() as f64;
+    let image_mean = mean.iter().map(|c| c.x as f64).sum::<f64>() / n;
+    let image_se = (var.iter().map(|v| v.x as f64).sum::<f64>()).sqrt() / n;
+    assert!((image_mean - 1.0).abs() <= 4.0 * image_se + 1e-4, "{image_mean} ± {image_se}");
+}
+
+/// No BSDF reflects more than it receives: the albedo `∫ f cos dωi`, estimated by BSDF
+/// sampling, stays below 1 + 4 standard errors for many materials and directions.
+#[test]
+fn no_bsdf_creates_energy() {
+    let mut rng = Rng::new(11, 5);
+    for metallic in [0.0, 0.5, 1.0] {
+        for roughness in [0.05, 0.3, 0.7, 1.0] {
+            let m = Material::from_desc(&MaterialDesc {
+                metallic,
+                roughness,
+                ..MaterialDesc::diffuse("m", Vec3::ONE)
+            });
+            for k in 0..6 {
+                let wo = sample_cosine_hemisphere(Vec2::new(k as f32 / 6.0 + 0.05, 0.3));
+                let values: Vec<f64> = (0..20_000)
+                    .map(|_| match m.sample(wo, rng.uniform(), rng.uniform2()) {
+                        Some(s) => (s.f.x * s.wi.z / s.pdf) as f64,
+                        None => 0.0,
+                    })
+                    .collect();
+                let (albedo, se) = mean_and_se(&values);
+                assert!(albedo <= 1.0 + 4.0 * se, "m={metallic} r={roughness}: {albedo} ± {se}");
+            }
+        }
+    }
+}
