@@ -1,0 +1,982 @@
+//! glTF loading, exporting and portal saving, checked against hand-computed answers, plus a
+//! corpus of broken files that must give errors naming the file (and the node or field), never
+//! panics.
+
+use std::f32::consts::FRAC_PI_2;
+use std::fs;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+use glam::{Mat4, Quat, Vec3};
+use portalview::scene::desc::{CameraDesc, MaterialDesc, MeshDesc, PortalDesc, SceneDesc};
+use portalview::scene::gltf_io::{export_glb, load_gltf, save_portals};
+use serde_json::{Value, json};
+
+const EPS: f32 = 1e-5;
+
+/// A fresh directory under the system's temporary directory.
+fn temp_dir(test: &str) -> PathBuf {
+    static COUNTER: AtomicUsize = AtomicUsize::new(0);
+    let dir = std::env::temp_dir().join(format!(
+        "portalview-gltf-{test}-{}-{}",
+        std::process::id(),
+        COUNTER.fetch_add(1, Ordering::Relaxed)
+    ));
+    let _ = fs::remove_dir_all(&dir);
+    fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// Binary data with the bufferViews and accessors that describe it (buffer 0).
+#[derive(Default)]
+struct Bin {
+    bytes: Vec<u8>,
+    views: Vec<Value>,
+    accessors: Vec<Value>,
+}
+
+impl Bin {
+    fn view(&mut self, data: &[u8]) -> usize {
+        while !self.bytes.len().is_multiple_of(4) {
+            self.bytes.push(0);
+        }
+        self.views.push(json!({
+            "buffer": 0, "byteOffset": self.bytes.len(), "byteLength": data.len()
+        }));
+        self.bytes.extend_from_slice(data);
+        self.views.len() - 1
+    }
+
+    fn vec3s(&mut self, values: &[[f32; 3]]) -> usize {
+        let data: Vec<u8> = values
+            .iter()
+            .flatten()
+            .flat_map(|x| x.to_le_bytes())
+            .collect();
+        let view = self.view(&data);
+        let lo = values
+            .iter()
+            .fold([f32::MAX; 3], |m, v| [0, 1, 2].map(|k| m[k].min(v[k])));
+        let hi = values
+            .iter()
+            .fold([f32::MIN; 3], |m, v| [0, 1, 2].map(|k| m[k].max(v[k])));
+        self.accessors.push(json!({
+            "bufferView": view, "componentType": 5126, "count": values.len(), "type": "VEC3",
+            "min": lo, "max": hi
+        }));
+        self.accessors.len() - 1
+    }
+
+    fn indices(&mut self, values: &[u16]) -> usize {
+        let data: Vec<u8> = values.iter().flat_map(|x| x.to_le_bytes()).collect();
+        let view = self.view(&data);
+        self.accessors.push(json!({
+            "bufferView": view, "componentType": 5123, "count": values.len(), "type": "SCALAR"
+        }));
+        self.accessors.len() - 1
+    }
+
+    fn data_uri(&self) -> String {
+        format!(
+            "data:application/octet-stream;base64,{}",
+            base64(&self.bytes)
+        )
+    }
+}
+
+fn base64(data: &[u8]) -> String {
+    const ALPHABET: &[u8] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    let mut out = String::new();
+    for chunk in data.chunks(3) {
+        let b = [0, 1, 2].map(|k| u32::from(*chunk.get(k).unwrap_or(&0)));
+        let n = (b[0] << 16) | (b[1] << 8) | b[2];
+        for k in 0..4 {
+            out.push(if k <= chunk.len() {
+                char::from(ALPHABET[(n >> (18 - 6 * k) & 63) as usize])
+            } else {
+                '='
+            });
+        }
+    }
+    out
+}
+
+fn write_json(path: &Path, doc: &Value) {
+    fs::write(path, serde_json::to_vec_pretty(doc).unwrap()).unwrap();
+}
+
+fn close(a: Vec3, b: Vec3) -> bool {
+    a.abs_diff_eq(b, EPS)
+}
+
+fn assert_portal_close(a: &PortalDesc, b: &PortalDesc) {
+    assert_eq!(a.name, b.name);
+    assert_eq!(a.target, b.target);
+    assert!((a.alpha - b.alpha).abs() < EPS, "{} alpha", a.name);
+    assert_eq!(
+        a.local_triangles.len(),
+        b.local_triangles.len(),
+        "{}",
+        a.name
+    );
+    for (s, t) in a.local_triangles.iter().zip(&b.local_triangles) {
+        for (p, q) in s.iter().zip(t) {
+            assert!(close(*p, *q), "{}: {p} vs {q}", a.name);
+        }
+    }
+    assert!(
+        a.world_from_local.abs_diff_eq(b.world_from_local, EPS),
+        "{}: {} vs {}",
+        a.name,
+        a.world_from_local,
+        b.world_from_local
+    );
+}
+
+/// Equal up to float round-off, the scene's name and portal node indices.
+fn assert_scenes_close(a: &SceneDesc, b: &SceneDesc) {
+    assert_eq!(a.materials.len(), b.materials.len());
+    for (m, n) in a.materials.iter().zip(&b.materials) {
+        assert_eq!(m.name, n.name);
+        assert!(close(m.base_color, n.base_color), "{}", m.name);
+        assert!((m.metallic - n.metallic).abs() < EPS);
+        assert!((m.roughness - n.roughness).abs() < EPS);
+        assert!(close(m.emissive_factor, n.emissive_factor), "{}", m.name);
+        assert!((m.emissive_strength - n.emissive_strength).abs() < EPS * m.emissive_strength);
+        assert_eq!(m.double_sided, n.double_sided, "{}", m.name);
+    }
+    assert_eq!(a.meshes.len(), b.meshes.len());
+    for (m, n) in a.meshes.iter().zip(&b.meshes) {
+        assert_eq!(m.node_name, n.node_name);
+        assert_eq!(m.material, n.material);
+        assert_eq!(m.indices, n.indices, "{}", m.node_name);
+        assert_eq!(m.positions.len(), n.positions.len());
+        assert!(
+            m.positions
+                .iter()
+                .zip(&n.positions)
+                .all(|(p, q)| close(*p, *q))
+        );
+        assert_eq!(m.normals.len(), n.normals.len());
+        assert!(m.normals.iter().zip(&n.normals).all(|(p, q)| close(*p, *q)));
+    }
+    assert_eq!(a.portals.len(), b.portals.len());
+    for (p, q) in a.portals.iter().zip(&b.portals) {
+        assert_portal_close(p, q);
+    }
+    match (&a.camera, &b.camera) {
+        (None, None) => {}
+        (Some(c), Some(d)) => {
+            assert!(close(c.eye, d.eye) && close(c.target, d.target) && close(c.up, d.up));
+            assert!((c.yfov - d.yfov).abs() < EPS && (c.aspect - d.aspect).abs() < EPS);
+        }
+        _ => panic!("one scene has a camera, the other not"),
+    }
+}
+
+fn quad(name: &str, material: usize, corners: [Vec3; 4], normal: Vec3) -> MeshDesc {
+    MeshDesc {
+        node_name: name.to_owned(),
+        material,
+        positions: corners.to_vec(),
+        normals: vec![normal; 4],
+        indices: vec![[0, 1, 2], [0, 2, 3]],
+    }
+}
+
+fn unit_square() -> Vec<[Vec3; 3]> {
+    let [a, b, c, d] = [
+        Vec3::new(-0.5, -0.5, 0.0),
+        Vec3::new(0.5, -0.5, 0.0),
+        Vec3::new(0.5, 0.5, 0.0),
+        Vec3::new(-0.5, 0.5, 0.0),
+    ];
+    vec![[a, b, c], [a, c, d]]
+}
+
+/// A floor, a one-sided emissive quad light facing down, a portal below it, a camera.
+fn sample_scene() -> SceneDesc {
+    let floor = quad(
+        "floor",
+        0,
+        [
+            Vec3::new(-2.0, 0.0, 2.0),
+            Vec3::new(2.0, 0.0, 2.0),
+            Vec3::new(2.0, 0.0, -2.0),
+            Vec3::new(-2.0, 0.0, -2.0),
+        ],
+        Vec3::Y,
+    );
+    let light = quad(
+        "light",
+        1,
+        [
+            Vec3::new(-0.5, 3.0, -0.5),
+            Vec3::new(0.5, 3.0, -0.5),
+            Vec3::new(0.5, 3.0, 0.5),
+            Vec3::new(-0.5, 3.0, 0.5),
+        ],
+        Vec3::NEG_Y,
+    );
+    SceneDesc {
+        name: "sample".to_owned(),
+        materials: vec![
+            MaterialDesc::diffuse("floor", Vec3::new(0.7, 0.6, 0.5)),
+            MaterialDesc::emitter("light", Vec3::new(20.0, 18.0, 15.0), false),
+        ],
+        meshes: vec![floor, light],
+        portals: vec![PortalDesc {
+            name: "window".to_owned(),
+            target: "light".to_owned(),
+            alpha: 0.25,
+            local_triangles: unit_square(),
+            world_from_local: Mat4::from_rotation_translation(
+                Quat::from_rotation_x(FRAC_PI_2),
+                Vec3::new(0.0, 2.0, 0.0),
+            ),
+            node_index: None,
+        }],
+        camera: Some(CameraDesc {
+            eye: Vec3::new(0.0, 1.0, 5.0),
+            target: Vec3::new(0.0, 1.0, 0.0),
+            up: Vec3::Y,
+            yfov: 0.7,
+            aspect: 1.5,
+        }),
+    }
+}
+
+#[test]
+fn export_then_load_round_trips() {
+    let dir = temp_dir("round-trip");
+    let path = dir.join("scene.glb");
+    let desc = sample_scene();
+    export_glb(&desc, &path).unwrap();
+
+    let loaded = load_gltf(&path).unwrap();
+    assert_eq!(loaded.name, "scene");
+    assert_eq!(loaded.portals[0].node_index, Some(2));
+    assert_scenes_close(&loaded, &desc);
+    assert_eq!(loaded.materials[1].radiance(), desc.materials[1].radiance());
+
+    // The strength extension is declared, and the file is one GLB with a BIN chunk.
+    let bytes = fs::read(&path).unwrap();
+    let glb = gltf::Glb::from_slice(&bytes).unwrap();
+    assert!(glb.bin.is_some());
+    let doc = gltf::Gltf::from_slice(&bytes).unwrap();
+    assert!(
+        doc.extensions_used()
+            .any(|e| e == "KHR_materials_emissive_strength")
+    );
+    // Exporting what was loaded gives the same scene again.
+    let again = dir.join("again.glb");
+    export_glb(&loaded, &again).unwrap();
+    assert_scenes_close(&load_gltf(&again).unwrap(), &desc);
+    let _ = fs::remove_dir_all(&dir);
+}
+
+/// A `.gltf` with an external buffer (whose name needs percent-encoding): a rotated and
+/// translated parent with a scaled child, and a mirrored node whose mesh has no normals and
+/// no indices.
+fn write_nested(dir: &Path) -> PathBuf {
+    let mut bin = Bin::default();
+    let triangle = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
+    let positions = bin.vec3s(&triangle);
+    let normals = bin.vec3s(&[[0.0, 0.0, 1.0]; 3]);
+    let indices = bin.indices(&[0, 1, 2]);
+    let bare = bin.vec3s(&triangle);
+    fs::write(dir.join("nested data.bin"), &bin.bytes).unwrap();
+    let s = std::f32::consts::FRAC_1_SQRT_2;
+    let doc = json!({
+        "asset": {"version": "2.0"},
+        "buffers": [{"uri": "nested%20data.bin", "byteLength": bin.bytes.len()}],
+        "bufferViews": bin.views,
+        "accessors": bin.accessors,
+        "meshes": [
+            {"name": "Tri", "primitives": [{"attributes": {"POSITION": positions, "NORMAL": normals}, "indices": indices}]},
+            {"name": "Bare", "primitives": [{"attributes": {"POSITION": bare}}]}
+        ],
+        "nodes": [
+            {"name": "Parent", "translation": [1.0, 2.0, 3.0], "rotation": [0.0, s, 0.0, s], "children": [1]},
+            {"name": "Child", "scale": [2.0, 2.0, 2.0], "mesh": 0},
+            {"name": "Mirror", "scale": [-1.0, 1.0, 1.0], "translation": [0.0, 0.0, -5.0], "mesh": 1}
+        ],
+        "scenes": [{"nodes": [0, 2]}],
+        "scene": 0
+    });
+    let path = dir.join("nested.gltf");
+    write_json(&path, &doc);
+    path
+}
+
+fn geometric_normal(mesh: &MeshDesc, t: usize) -> Vec3 {
+    let [a, b, c] = mesh.indices[t].map(|i| mesh.positions[i as usize]);
+    (b - a).cross(c - a).normalize()
+}
+
+#[test]
+fn external_bin_and_nested_transforms_give_world_space() {
+    let dir = temp_dir("nested");
+    let scene = load_gltf(&write_nested(&dir)).unwrap();
+    assert_eq!(scene.name, "nested");
+    assert!(scene.portals.is_empty() && scene.camera.is_none());
+    // Primitives without a material share one appended default material.
+    assert_eq!(scene.materials.len(), 1);
+    assert_eq!(scene.materials[0].name, "default");
+    assert!(close(scene.materials[0].base_color, Vec3::splat(0.8)));
+    assert!(!scene.materials[0].double_sided);
+    assert_eq!(scene.meshes.len(), 2);
+
+    // Child: scale 2, then a quarter turn about +Y ((x, y, z) -> (z, y, -x)), then (1, 2, 3).
+    let child = &scene.meshes[0];
+    assert_eq!(child.node_name, "Child");
+    let expected = [
+        Vec3::new(1.0, 2.0, 3.0),
+        Vec3::new(1.0, 2.0, 1.0),
+        Vec3::new(1.0, 4.0, 3.0),
+    ];
+    for (p, e) in child.positions.iter().zip(expected) {
+        assert!(close(*p, e), "{p} vs {e}");
+    }
+    assert_eq!(child.indices, vec![[0, 1, 2]]);
+    for n in &child.normals {
+        assert!(close(*n, Vec3::X), "{n}");
+    }
+    assert!(close(geometric_normal(child, 0), Vec3::X));
+
+    // Mirror: x negated, so the winding is flipped to keep the front face towards +Z.
+    let mirror = &scene.meshes[1];
+    assert_eq!(mirror.node_name, "Mirror");
+    let expected = [
+        Vec3::new(0.0, 0.0, -5.0),
+        Vec3::new(-1.0, 0.0, -5.0),
+        Vec3::new(0.0, 1.0, -5.0),
+    ];
+    for (p, e) in mirror.positions.iter().zip(expected) {
+        assert!(close(*p, e), "{p} vs {e}");
+    }
+    assert_eq!(mirror.indices, vec![[0, 2, 1]]);
+    assert!(close(geometric_normal(mirror, 0), Vec3::Z));
+    for n in &mirror.normals {
+        assert!(close(*n, Vec3::Z), "computed normal {n}");
+    }
+    let _ = fs::remove_dir_all(&dir);
+}
+
+/// Roughly what Blender writes: TRS nodes, custom properties as extras, the emissive strength
+/// extension, a camera pitched down, a data-URI buffer.
+fn write_blender_style(dir: &Path, name: &str) -> PathBuf {
+    let s = std::f32::consts::FRAC_1_SQRT_2;
+    let mut bin = Bin::default();
+    let square = [
+        [-1.0, -1.0, 0.0],
+        [1.0, -1.0, 0.0],
+        [1.0, 1.0, 0.0],
+        [-1.0, 1.0, 0.0],
+    ];
+    let square_positions = bin.vec3s(&square);
+    let square_normals = bin.vec3s(&[[0.0, 0.0, 1.0]; 4]);
+    let square_indices = bin.indices(&[0, 1, 2, 0, 2, 3]);
+    let doc = json!({
+        "asset": {"version": "2.0", "generator": "Khronos glTF Blender I/O v4.2.83"},
+        "extensionsUsed": ["KHR_materials_emissive_strength", "KHR_texture_transform"],
+        "extensionsRequired": ["KHR_texture_transform"],
+        "scene": 0,
+        "scenes": [{"name": "Scene", "nodes": [0, 1, 2, 3, 4]}],
+        "nodes": [
+            {"name": "Floor", "mesh": 0, "rotation": [-s, 0.0, 0.0, s], "scale": [5.0, 5.0, 1.0]},
+            {"name": "Area Light", "mesh": 1, "translation": [0.0, 4.0, 0.0], "rotation": [s, 0.0, 0.0, s]},
+            {"name": "Portal", "mesh": 2, "translation": [0.5, 2.0, -1.0],
+             "rotation": [0.0, 0.3826834, 0.0, 0.9238795], "scale": [1.5, 0.5, 1.0],
+             "extras": {"portal_target": "Area Light", "portal_light_probability": 0.3, "blender_note": "keep me"}},
+            {"name": "Portal.001", "mesh": 2, "translation": [0.0, 1.0, 3.0],
+             "extras": {"portal_target": "Area Light"}},
+            {"name": "Camera", "camera": 0, "translation": [0.0, 3.0, 8.0],
+             "rotation": [-0.2588190, 0.0, 0.0, 0.9659258]}
+        ],
+        "cameras": [{"name": "Camera", "type": "perspective",
+                     "perspective": {"yfov": 0.6911112, "znear": 0.1, "zfar": 100.0}}],
+        "materials": [
+            {"name": "White", "doubleSided": true,
+             "pbrMetallicRoughness": {"baseColorFactor": [0.8, 0.8, 0.8, 1.0], "metallicFactor": 0.0, "roughnessFactor": 0.5}},
+            {"name": "Emitter", "emissiveFactor": [1.0, 0.9, 0.8],
+             "extensions": {"KHR_materials_emissive_strength": {"emissiveStrength": 40.0}},
+             "pbrMetallicRoughness": {"baseColorFactor": [0.0, 0.0, 0.0, 1.0]}}
+        ],
+        "meshes": [
+            {"name": "Plane", "primitives": [{"attributes": {"POSITION": square_positions, "NORMAL": square_normals}, "indices": square_indices, "material": 0}]},
+            {"name": "Plane.001", "primitives": [{"attributes": {"POSITION": square_positions, "NORMAL": square_normals}, "indices": square_indices, "material": 1}]},
+            {"name": "PortalMesh", "primitives": [{"attributes": {"POSITION": square_positions}, "indices": square_indices}]}
+        ],
+        "accessors": bin.accessors,
+        "bufferViews": bin.views,
+        "buffers": [{"byteLength": bin.bytes.len(), "uri": bin.data_uri()}]
+    });
+    let path = dir.join(name);
+    write_json(&path, &doc);
+    path
+}
+
+#[test]
+fn blender_style_portal_extras() {
+    let dir = temp_dir("blender");
+    let scene = load_gltf(&write_blender_style(&dir, "blender.gltf")).unwrap();
+    let names: Vec<&str> = scene.meshes.iter().map(|m| m.node_name.as_str()).collect();
+    assert_eq!(
+        names,
+        ["Floor", "Area Light"],
+        "portal meshes are not geometry"
+    );
+    // The portal mesh has no material, but it is not geometry: no default material appears.
+    assert_eq!(scene.materials.len(), 2);
+    let emitter = &scene.materials[1];
+    assert!((emitter.emissive_strength - 40.0).abs() < EPS);
+    assert!(close(emitter.radiance(), Vec3::new(40.0, 36.0, 32.0)));
+    assert!(scene.materials[0].double_sided && !emitter.double_sided);
+    assert!((scene.materials[0].roughness - 0.5).abs() < EPS);
+
+    // The floor's quad, rotated -90° about X and scaled 5, lies in y = 0 facing +Y.
+    let floor = &scene.meshes[0];
+    assert!(floor.positions.iter().all(|p| p.y.abs() < EPS));
+    assert!(close(floor.positions[2], Vec3::new(5.0, 0.0, -5.0)));
+    assert!(floor.normals.iter().all(|n| close(*n, Vec3::Y)));
+
+    assert_eq!(scene.portals.len(), 2);
+    let portal = &scene.portals[0];
+    assert_eq!(portal.name, "Portal");
+    assert_eq!(portal.target, "Area Light");
+    assert!((portal.alpha - 0.3).abs() < EPS);
+    assert_eq!(portal.node_index, Some(2));
+    let [a, b, c, d] = [
+        Vec3::new(-1.0, -1.0, 0.0),
+        Vec3::new(1.0, -1.0, 0.0),
+        Vec3::new(1.0, 1.0, 0.0),
+        Vec3::new(-1.0, 1.0, 0.0),
+    ];
+    assert_eq!(portal.local_triangles, vec![[a, b, c], [a, c, d]]);
+    let expected = Mat4::from_scale_rotation_translation(
+        Vec3::new(1.5, 0.5, 1.0),
+        Quat::from_rotation_y(std::f32::consts::FRAC_PI_4),
+        Vec3::new(0.5, 2.0, -1.0),
+    );
+    assert!(portal.world_from_local.abs_diff_eq(expected, 1e-5));
+    let second = &scene.portals[1];
+    assert_eq!(second.name, "Portal.001");
+    assert!((second.alpha - 0.1).abs() < EPS, "default alpha");
+    assert_eq!(second.node_index, Some(3));
+
+    // Camera: pitched down 30°, aspect 4/3 when the file gives none.
+    let Some(camera) = scene.camera else {
+        panic!("the file has a camera");
+    };
+    let pitch = Quat::from_rotation_x(-30f32.to_radians());
+    assert!(close(camera.eye, Vec3::new(0.0, 3.0, 8.0)));
+    assert!(close(camera.target - camera.eye, pitch * Vec3::NEG_Z));
+    assert!(close(camera.up, pitch * Vec3::Y));
+    assert!((camera.yfov - 0.6911112).abs() < EPS);
+    assert!((camera.aspect - 4.0 / 3.0).abs() < EPS);
+    let _ = fs::remove_dir_all(&dir);
+}
+
+fn json_chunk(bytes: &[u8]) -> Value {
+    let glb = gltf::Glb::from_slice(bytes).unwrap();
+    serde_json::from_slice(&glb.json).unwrap()
+}
+
+fn portal_named<'a>(scene: &'a SceneDesc, name: &str) -> &'a PortalDesc {
+    let found = scene.portals.iter().find(|p| p.name == name);
+    found.unwrap_or_else(|| panic!("no portal {name}"))
+}
+
+/// Only `file` is left in its directory: the temporary file was renamed over it.
+#[allow(unused_variables)]
+fn assert_replaced(file: &Path, inode_before: u64) {
+    let dir = file.parent().unwrap();
+    let entries: Vec<_> = fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .filter(|n| !n.to_string_lossy().ends_with(".bin"))
+        .collect();
+    assert_eq!(entries, [file.file_name().unwrap()], "leftover files");
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::MetadataExt;
+        assert_ne!(
+            fs::metadata(file).unwrap().ino(),
+            inode_before,
+            "replaced, not rewritten in place"
+        );
+    }
+}
+
+fn inode(file: &Path) -> u64 {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::MetadataExt;
+        fs::metadata(file).unwrap().ino()
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = file;
+        0
+    }
+}
+
+fn new_portal(name: &str, at: Vec3) -> PortalDesc {
+    PortalDesc {
+        name: name.to_owned(),
+        target: "light".to_owned(),
+        alpha: 0.4,
+        local_triangles: vec![[Vec3::ZERO, Vec3::X, Vec3::Y]],
+        world_from_local: Mat4::from_translation(at),
+        node_index: None,
+    }
+}
+
+#[test]
+fn save_portals_round_trip_glb() {
+    let dir = temp_dir("save-glb");
+    let path = dir.join("room.glb");
+    let mut desc = sample_scene();
+    let mut door = desc.portals[0].clone();
+    door.name = "door".to_owned();
+    door.world_from_local = Mat4::from_translation(Vec3::new(3.0, 1.0, 0.0));
+    desc.portals.push(door);
+    export_glb(&desc, &path).unwrap();
+    let before_bytes = fs::read(&path).unwrap();
+    let before = json_chunk(&before_bytes);
+    let loaded = load_gltf(&path).unwrap();
+    assert_eq!(loaded.portals.len(), 2);
+
+    // Move and retune the window, delete the door, add a skylight.
+    let mut window = portal_named(&loaded, "window").clone();
+    window.world_from_local =
+        Mat4::from_translation(Vec3::new(0.0, 0.5, 0.25)) * window.world_from_local;
+    window.alpha = 0.5;
+    window.target = "light".to_owned();
+    let skylight = new_portal("skylight", Vec3::new(0.0, 2.5, 0.0));
+    let inode_before = inode(&path);
+    save_portals(&path, &[window.clone(), skylight.clone()]).unwrap();
+    assert_replaced(&path, inode_before);
+
+    let after_bytes = fs::read(&path).unwrap();
+    let after = json_chunk(&after_bytes);
+    let reloaded = load_gltf(&path).unwrap();
+    assert_eq!(reloaded.portals.len(), 2);
+    assert_portal_close(portal_named(&reloaded, "window"), &window);
+    let added = portal_named(&reloaded, "skylight");
+    assert_portal_close(added, &skylight);
+    assert_eq!(
+        added.node_index,
+        Some(5),
+        "appended after the 5 exported nodes"
+    );
+    // Everything else reads back as before.
+    let without_portals = |s: &SceneDesc| SceneDesc {
+        portals: Vec::new(),
+        ..s.clone()
+    };
+    assert_scenes_close(&without_portals(&reloaded), &without_portals(&loaded));
+
+    // The BIN chunk is kept byte for byte; non-portal nodes and old arrays are unchanged.
+    let bin = |bytes: &[u8]| {
+        gltf::Glb::from_slice(bytes)
+            .unwrap()
+            .bin
+            .unwrap()
+            .into_owned()
+    };
+    assert_eq!(bin(&after_bytes), bin(&before_bytes));
+    for i in [0, 1, 4] {
+        assert_eq!(after["nodes"][i], before["nodes"][i], "node {i}");
+    }
+    assert_eq!(
+        after["nodes"][3], before["nodes"][3],
+        "the deleted door's node stays, detached"
+    );
+    assert_eq!(after["scenes"][0]["nodes"], json!([0, 1, 2, 4, 5]));
+    for key in ["materials", "cameras", "extensionsUsed", "asset"] {
+        assert_eq!(after[key], before[key], "{key}");
+    }
+    for key in ["accessors", "bufferViews", "meshes", "buffers"] {
+        let old = before[key].as_array().unwrap();
+        assert_eq!(
+            after[key].as_array().unwrap()[..old.len()],
+            old[..],
+            "{key}"
+        );
+    }
+    // Saving what was reloaded changes nothing that loads.
+    save_portals(&path, &reloaded.portals).unwrap();
+    let again = load_gltf(&path).unwrap();
+    assert_scenes_close(&again, &reloaded);
+    let _ = fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn save_portals_round_trip_gltf() {
+    let dir = temp_dir("save-gltf");
+    let mut bin = Bin::default();
+    let square = [
+        [-1.0, -1.0, 0.0],
+        [1.0, -1.0, 0.0],
+        [1.0, 1.0, 0.0],
+        [-1.0, 1.0, 0.0],
+    ];
+    let positions = bin.vec3s(&square);
+    let indices = bin.indices(&[0, 1, 2, 0, 2, 3]);
+    fs::write(dir.join("house.bin"), &bin.bytes).unwrap();
+    let s = std::f32::consts::FRAC_1_SQRT_2;
+    let doc = json!({
+        "asset": {"version": "2.0", "generator": "hand"},
+        "extensionsUsed": ["EXT_made_up"],
+        "scene": 0,
+        "scenes": [{"nodes": [0, 2, 3]}],
+        "nodes": [
+            {"name": "Frame", "translation": [0.0, 1.0, 0.0], "rotation": [0.0, s, 0.0, s],
+             "scale": [2.0, 2.0, 2.0], "children": [1], "extras": {"frame_id": 7}},
+            {"name": "Window", "mesh": 1, "translation": [0.25, 0.0, 0.0],
+             "extras": {"portal_target": "Sun", "portal_light_probability": 0.2, "blender_note": "keep"}},
+            {"name": "Door", "mesh": 1, "translation": [5.0, 0.0, 0.0], "extras": {"portal_target": "Sun"}},
+            {"name": "Sun", "mesh": 0, "translation": [0.0, 10.0, 0.0],
+             "extensions": {"EXT_made_up": {"answer": 42}}, "extras": {"sun": [1, 2, 3]}}
+        ],
+        "materials": [{"name": "Hot", "emissiveFactor": [1.0, 1.0, 1.0]}],
+        "meshes": [
+            {"name": "SunMesh", "primitives": [{"attributes": {"POSITION": positions}, "indices": indices, "material": 0}]},
+            {"name": "PortalMesh", "primitives": [{"attributes": {"POSITION": positions}, "indices": indices}]}
+        ],
+        "accessors": bin.accessors,
+        "bufferViews": bin.views,
+        "buffers": [{"byteLength": bin.bytes.len(), "uri": "house.bin"}]
+    });
+    let path = dir.join("house.gltf");
+    write_json(&path, &doc);
+    let loaded = load_gltf(&path).unwrap();
+    assert_eq!(loaded.portals.len(), 2);
+    let window = portal_named(&loaded, "Window");
+    let frame_world = Mat4::from_scale_rotation_translation(
+        Vec3::splat(2.0),
+        Quat::from_rotation_y(FRAC_PI_2),
+        Vec3::Y,
+    );
+    let expected = frame_world * Mat4::from_translation(Vec3::new(0.25, 0.0, 0.0));
+    assert!(window.world_from_local.abs_diff_eq(expected, 1e-5));
+
+    // Move the window (it stays under its parent), reshape nothing, delete the door, add one.
+    let mut moved = window.clone();
+    moved.world_from_local =
+        Mat4::from_translation(Vec3::new(0.0, 0.0, 1.0)) * moved.world_from_local;
+    moved.alpha = 0.6;
+    let mut skylight = new_portal("Skylight", Vec3::new(0.0, 5.0, 0.0));
+    skylight.target = "Sun".to_owned();
+    // A reshaped portal gets a new mesh.
+    let mut reshaped = moved.clone();
+    reshaped.local_triangles = vec![[Vec3::ZERO, Vec3::X, Vec3::Y]];
+    let bin_before = fs::read(dir.join("house.bin")).unwrap();
+    let inode_before = inode(&path);
+    save_portals(&path, &[reshaped.clone(), skylight.clone()]).unwrap();
+    assert_replaced(&path, inode_before);
+
+    let text = fs::read_to_string(&path).unwrap();
+    assert!(text.contains("\n  "), "a .gltf stays pretty-printed JSON");
+    let after: Value = serde_json::from_str(&text).unwrap();
+    assert_eq!(fs::read(dir.join("house.bin")).unwrap(), bin_before);
+    let reloaded = load_gltf(&path).unwrap();
+    assert_eq!(reloaded.portals.len(), 2);
+    assert_portal_close(portal_named(&reloaded, "Window"), &reshaped);
+    assert_portal_close(portal_named(&reloaded, "Skylight"), &skylight);
+
+    // The window's node: a matrix relative to its parent, TRS gone, other extras kept.
+    let node = &after["nodes"][1];
+    assert!(node.get("translation").is_none() && node.get("rotation").is_none());
+    assert_eq!(node["extras"]["blender_note"], "keep");
+    assert_eq!(node["extras"]["portal_target"], "Sun");
+    assert_eq!(node["mesh"], 2, "a new mesh for the new shape");
+    let local: Vec<f32> = serde_json::from_value(node["matrix"].clone()).unwrap();
+    let expected_local = frame_world.inverse() * reshaped.world_from_local;
+    assert!(Mat4::from_cols_slice(&local).abs_diff_eq(expected_local, 1e-5));
+    // Everything else is as it was.
+    for i in [0, 2, 3] {
+        assert_eq!(after["nodes"][i], doc["nodes"][i], "node {i}");
+    }
+    assert_eq!(after["scenes"][0]["nodes"], json!([0, 3, 4]));
+    assert_eq!(after["buffers"][0], doc["buffers"][0]);
+    let data_uri = after["buffers"][1]["uri"].as_str().unwrap();
+    assert!(data_uri.starts_with("data:application/octet-stream;base64,"));
+    for key in ["extensionsUsed", "materials", "asset"] {
+        assert_eq!(after[key], doc[key], "{key}");
+    }
+    let _ = fs::remove_dir_all(&dir);
+}
+
+/// A one-triangle document with an external `.bin` named after `stem`, for breaking.
+fn triangle_doc(dir: &Path, stem: &str, positions: &[[f32; 3]], indices: &[u16]) -> Value {
+    let mut bin = Bin::default();
+    let p = bin.vec3s(positions);
+    let i = bin.indices(indices);
+    fs::write(dir.join(format!("{stem}.bin")), &bin.bytes).unwrap();
+    json!({
+        "asset": {"version": "2.0"},
+        "buffers": [{"uri": format!("{stem}.bin"), "byteLength": bin.bytes.len()}],
+        "bufferViews": bin.views,
+        "accessors": bin.accessors,
+        "meshes": [{"name": "Tri", "primitives": [{"attributes": {"POSITION": p}, "indices": i}]}],
+        "nodes": [{"name": "Tri Node", "mesh": 0}],
+        "scenes": [{"nodes": [0]}],
+        "scene": 0
+    })
+}
+
+const TRIANGLE: [[f32; 3]; 3] = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
+
+#[test]
+fn sparse_accessors_substitute_values() {
+    let dir = temp_dir("sparse");
+    let mut bin = Bin::default();
+    let base = bin.vec3s(&TRIANGLE);
+    let sparse_indices = bin.view(&[2u8, 0, 0, 0]);
+    let sparse_values = bin.view(
+        &[0.0f32, 2.0, 0.0]
+            .iter()
+            .flat_map(|x| x.to_le_bytes())
+            .collect::<Vec<u8>>(),
+    );
+    let sparse = json!({
+        "count": 1,
+        "indices": {"bufferView": sparse_indices, "componentType": 5121},
+        "values": {"bufferView": sparse_values}
+    });
+    // One accessor over the base triangle, one over implicit zeros.
+    let mut over_base = bin.accessors[base].clone();
+    over_base["sparse"] = sparse.clone();
+    let over_zeros = json!({"componentType": 5126, "count": 3, "type": "VEC3", "sparse": sparse});
+    let doc = json!({
+        "asset": {"version": "2.0"},
+        "buffers": [{"uri": bin.data_uri(), "byteLength": bin.bytes.len()}],
+        "bufferViews": bin.views,
+        "accessors": [over_base, over_zeros],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]},
+                   {"primitives": [{"attributes": {"POSITION": 1}}]}],
+        "nodes": [{"mesh": 0}, {"mesh": 1}],
+        "scenes": [{"nodes": [0, 1]}]
+    });
+    let path = dir.join("sparse.gltf");
+    write_json(&path, &doc);
+    let scene = load_gltf(&path).unwrap();
+    let lifted = [Vec3::ZERO, Vec3::X, Vec3::new(0.0, 2.0, 0.0)];
+    assert_eq!(scene.meshes[0].positions, lifted);
+    assert_eq!(scene.meshes[0].node_name, "node 0");
+    assert_eq!(
+        scene.meshes[1].positions,
+        [Vec3::ZERO, Vec3::ZERO, lifted[2]]
+    );
+    let _ = fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn broken_files_give_errors_naming_the_file_and_field() {
+    let dir = temp_dir("broken");
+    // (file name, how to write it, words the message must contain)
+    type Writer = Box<dyn Fn(&Path, &Path)>;
+    let edited = |edit: fn(&mut Value)| -> Writer {
+        Box::new(move |dir: &Path, path: &Path| {
+            let stem = path.file_stem().unwrap().to_string_lossy().into_owned();
+            let mut doc = triangle_doc(dir, &stem, &TRIANGLE, &[0, 1, 2]);
+            edit(&mut doc);
+            write_json(path, &doc);
+        })
+    };
+    let cases: Vec<(&str, Writer, &[&str])> = vec![
+        (
+            "bad_json.gltf",
+            Box::new(|_, p| fs::write(p, "{ \"asset\": ").unwrap()),
+            &["JSON"],
+        ),
+        (
+            "empty.glb",
+            Box::new(|_, p| fs::write(p, b"").unwrap()),
+            &["GLB"],
+        ),
+        (
+            "truncated.glb",
+            Box::new(|dir, p| {
+                let whole = dir.join("whole.glb");
+                export_glb(&sample_scene(), &whole).unwrap();
+                let bytes = fs::read(&whole).unwrap();
+                fs::write(p, &bytes[..bytes.len() / 2]).unwrap();
+                fs::remove_file(whole).unwrap();
+            }),
+            &["truncated"],
+        ),
+        (
+            "missing_bin.gltf",
+            edited(|d| d["buffers"][0]["uri"] = json!("nowhere.bin")),
+            &["buffer 0", "nowhere.bin"],
+        ),
+        (
+            "short_buffer.gltf",
+            edited(|d| d["buffers"][0]["byteLength"] = json!(1000)),
+            &["buffer 0", "byteLength 1000"],
+        ),
+        (
+            "view_out_of_buffer.gltf",
+            edited(|d| d["bufferViews"][0]["byteOffset"] = json!(400)),
+            &["bufferView 0", "Tri Node"],
+        ),
+        (
+            "accessor_out_of_range.gltf",
+            edited(|d| d["accessors"][0]["count"] = json!(100)),
+            &["accessor 0", "Tri Node", "POSITION"],
+        ),
+        (
+            "huge_count.gltf",
+            edited(|d| d["accessors"][0]["count"] = json!(4_000_000_000u64)),
+            &["accessor 0", "exceeds the limit"],
+        ),
+        (
+            "index_out_of_range.gltf",
+            Box::new(|dir, p| {
+                write_json(
+                    p,
+                    &triangle_doc(dir, "index_out_of_range", &TRIANGLE, &[0, 1, 7]),
+                )
+            }),
+            &["Tri Node", "index 7"],
+        ),
+        (
+            "infinite_matrix.gltf",
+            edited(|d| {
+                d["nodes"][0]["matrix"] = json!([1e39, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1])
+            }),
+            &["Tri Node", "matrix", "not finite"],
+        ),
+        (
+            "nan_matrix.gltf",
+            Box::new(|dir, p| {
+                let mut doc = triangle_doc(dir, "nan_matrix", &TRIANGLE, &[0, 1, 2]);
+                doc["nodes"][0]["matrix"] = json!("@");
+                let text = serde_json::to_string(&doc).unwrap().replace(
+                    "\"@\"",
+                    "[NaN, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1]",
+                );
+                fs::write(p, text).unwrap();
+            }),
+            &["JSON"],
+        ),
+        (
+            "nan_position.gltf",
+            Box::new(|dir, p| {
+                let nan = [[0.0, f32::NAN, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
+                let mut doc = triangle_doc(dir, "nan_position", &nan, &[0, 1, 2]);
+                doc["accessors"][0]["min"] = json!([0, 0, 0]);
+                doc["accessors"][0]["max"] = json!([1, 1, 0]);
+                write_json(p, &doc);
+            }),
+            &["Tri Node", "POSITION", "not finite"],
+        ),
+        (
+            "lines.gltf",
+            edited(|d| d["meshes"][0]["primitives"][0]["mode"] = json!(1)),
+            &["Tri Node", "LINES"],
+        ),
+        (
+            "no_positions.gltf",
+            edited(|d| d["meshes"][0]["primitives"][0]["attributes"] = json!({"NORMAL": 0})),
+            &["POSITION"],
+        ),
+        (
+            "bad_accessor_index.gltf",
+            edited(|d| d["meshes"][0]["primitives"][0]["attributes"]["POSITION"] = json!(9)),
+            &["mesh 0", "accessor 9"],
+        ),
+        (
+            "cycle.gltf",
+            edited(|d| d["nodes"][0]["children"] = json!([0])),
+            &["Tri Node", "twice"],
+        ),
+        (
+            "bad_base64.gltf",
+            edited(|d| d["buffers"][0]["uri"] = json!("data:application/octet-stream;base64,@@@")),
+            &["buffer 0", "base64"],
+        ),
+        (
+            "draco.gltf",
+            edited(|d| d["extensionsRequired"] = json!(["KHR_draco_mesh_compression"])),
+            &["extensionsRequired[0]", "KHR_draco_mesh_compression"],
+        ),
+        (
+            "portal_alpha.gltf",
+            edited(|d| {
+                d["nodes"][0]["extras"] =
+                    json!({"portal_target": "Light", "portal_light_probability": "lots"})
+            }),
+            &["Tri Node", "portal_light_probability"],
+        ),
+        (
+            "portal_without_mesh.gltf",
+            edited(|d| {
+                d["nodes"] = json!([{"name": "Hole", "extras": {"portal_target": "Light"}}])
+            }),
+            &["Hole", "no mesh"],
+        ),
+        (
+            "bad_camera.gltf",
+            edited(|d| {
+                d["cameras"] =
+                    json!([{"type": "perspective", "perspective": {"yfov": -1.0, "znear": 0.1}}]);
+                d["nodes"][0]["camera"] = json!(0);
+            }),
+            &["Tri Node", "yfov"],
+        ),
+    ];
+    for (name, write, words) in cases {
+        let path = dir.join(name);
+        write(&dir, &path);
+        let Err(error) = load_gltf(&path) else {
+            panic!("{name} loaded");
+        };
+        let message = error.to_string();
+        assert!(message.contains(name), "{name}: {message}");
+        for word in words {
+            assert!(
+                message.contains(word),
+                "{name}: no \"{word}\" in: {message}"
+            );
+        }
+        // Saving portals into a broken file fails the same way and leaves it untouched.
+        let before = fs::read(&path).unwrap();
+        assert!(save_portals(&path, &[]).is_err(), "{name}");
+        assert_eq!(fs::read(&path).unwrap(), before, "{name}");
+    }
+    assert!(load_gltf(&dir.join("does_not_exist.glb")).is_err());
+    let _ = fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn export_rejects_what_it_could_not_read_back() {
+    let dir = temp_dir("export-bad");
+    let path = dir.join("bad.glb");
+    let mut desc = sample_scene();
+    desc.meshes[0].indices[0] = [0, 1, 9];
+    let message = export_glb(&desc, &path).unwrap_err().to_string();
+    assert!(
+        message.contains("bad.glb") && message.contains("floor"),
+        "{message}"
+    );
+    assert!(!path.exists(), "nothing is written");
+    let mut desc = sample_scene();
+    desc.portals[0].alpha = 2.0;
+    assert!(export_glb(&desc, &path).is_err());
+    let mut desc = sample_scene();
+    if let Some(camera) = &mut desc.camera {
+        camera.target = camera.eye;
+    }
+    assert!(export_glb(&desc, &path).is_err());
+    assert_eq!(
+        fs::read_dir(&dir).unwrap().count(),
+        0,
+        "no temporary files left"
+    );
+    let _ = fs::remove_dir_all(&dir);
+}
