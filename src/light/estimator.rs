@@ -42,12 +42,35 @@ pub struct LightContext {
     pub light: usize,
     pub x: Vec3,
     pub alpha: f32,
+    /// Whether the strategy uses portals and the light has some.
+    pub has_portals: bool,
     /// Whether `x` is in front of a portal of the light (else plain light sampling).
     pub uses_portals: bool,
     pub terms: ArrayVec<PortalTerm, MAX_TERMS>,
     /// The region of `x` for the portal with the largest weight (Behind if it is in front of
     /// none; Outside if outside all), for statistics and overlays.
     pub region: Region,
+}
+
+impl LightContext {
+    /// An empty context, to be filled by [`LightSampler::fill_context`].
+    pub fn new() -> Self {
+        LightContext {
+            light: 0,
+            x: Vec3::ZERO,
+            alpha: 1.0,
+            has_portals: false,
+            uses_portals: false,
+            terms: ArrayVec::new(),
+            region: Region::Behind,
+        }
+    }
+}
+
+impl Default for LightContext {
+    fn default() -> Self {
+        Self::new()
+    }
 }
 
 /// A direction drawn towards a light, with what it sees there.
@@ -63,6 +86,8 @@ pub struct LightSample {
     /// The mixture pdf `q(wi)`, solid angle, excluding the light-selection probability.
     pub pdf: f32,
     pub technique: Technique,
+    /// The drawing technique's own density for `wi`, as its sampling procedure computed it.
+    pub technique_pdf: f32,
 }
 
 /// Samples lights for a scene under one strategy.
@@ -115,16 +140,23 @@ impl LightSampler {
 
     /// Classifies `x` against the light's portals and fixes the mixture there.
     pub fn context(&self, scene: &Scene, light: usize, x: Vec3) -> LightContext {
-        let mut ctx = LightContext {
-            light,
-            x,
-            alpha: self.alpha_of[light],
-            uses_portals: false,
-            terms: ArrayVec::new(),
-            region: Region::Behind,
-        };
-        if self.strategy == Strategy::Light {
-            return ctx;
+        let mut ctx = LightContext::new();
+        self.fill_context(scene, light, x, &mut ctx);
+        ctx
+    }
+
+    /// [`Self::context`] into a reused buffer: a context holds a spherical polygon per portal,
+    /// too large to move around per shading point.
+    pub fn fill_context(&self, scene: &Scene, light: usize, x: Vec3, ctx: &mut LightContext) {
+        ctx.light = light;
+        ctx.x = x;
+        ctx.alpha = self.alpha_of[light];
+        ctx.uses_portals = false;
+        ctx.has_portals = self.strategy != Strategy::Light && !self.portals_of[light].is_empty();
+        ctx.terms.clear();
+        ctx.region = Region::Behind;
+        if !ctx.has_portals {
+            return;
         }
         for &j in &self.portals_of[light] {
             let portal = &scene.portals[j];
@@ -165,7 +197,6 @@ impl LightSampler {
         if let Some(best) = ctx.terms.iter().max_by(|a, b| a.weight.total_cmp(&b.weight)) {
             ctx.region = best.region;
         }
-        ctx
     }
 
     /// Draws a direction from the mixture: the technique by `u_technique`, the direction by `u`.
@@ -180,31 +211,40 @@ impl LightSampler {
     ) -> Option<LightSample> {
         let light = &scene.geometry.lights[ctx.light];
         let x = ctx.x;
+        // Each route returns the direction, the light hit, and the technique's density as the
+        // sampling procedure sees it (tests compare it with the evaluation in `pdf`).
         let from_light = |y: LightPoint| {
             let v = y.p - x;
             let dist = v.length();
-            (dist > 0.0).then(|| (v / dist, Some((y, dist))))
+            let wi = v / dist;
+            (dist > 0.0).then(|| (wi, Some((y, dist)), light.pdf_solid_angle(dist, y.n.dot(wi))))
         };
-        let (technique, (wi, hit)) = if !ctx.uses_portals || u_technique < ctx.alpha {
-            (Technique::Light, from_light(light.sample_point(u)?)?)
-        } else {
-            // Rescale the remaining share to pick the portal term.
-            let mut v = (u_technique - ctx.alpha) / (1.0 - ctx.alpha);
-            let term = ctx.terms.iter().find(|t| {
-                let hit = v < t.weight;
-                v -= t.weight;
-                hit
-            });
-            let term = term.or(ctx.terms.last())?;
-            let portal = &scene.portals[term.portal];
-            let through = |wi: Vec3| (wi, self.light_hit(scene, ctx.light, x, wi));
-            let sampled = match term.technique {
-                Technique::Light => from_light(light.sample_point(u)?)?,
-                Technique::Portal => through((portal.polygon.sample_uniform(u) - x).try_normalize()?),
-                Technique::Projection => through(term.projection.as_ref()?.sample(u)?.0),
+        let (technique, (wi, hit, technique_pdf)) =
+            if !ctx.uses_portals || u_technique < ctx.alpha {
+                (Technique::Light, from_light(light.sample_point(u)?)?)
+            } else {
+                // Rescale the remaining share to pick the portal term.
+                let mut v = (u_technique - ctx.alpha) / (1.0 - ctx.alpha);
+                let term = ctx.terms.iter().find(|t| {
+                    let hit = v < t.weight;
+                    v -= t.weight;
+                    hit
+                });
+                let term = term.or(ctx.terms.last())?;
+                let portal = &scene.portals[term.portal];
+                let sampled = match term.technique {
+                    Technique::Light => from_light(light.sample_point(u)?)?,
+                    Technique::Portal => {
+                        let (wi, pdf) = sample_portal(portal, x, u)?;
+                        (wi, self.light_hit(scene, ctx.light, x, wi), pdf)
+                    }
+                    Technique::Projection => {
+                        let (wi, pdf) = term.projection.as_ref()?.sample(u)?;
+                        (wi, self.light_hit(scene, ctx.light, x, wi), pdf)
+                    }
+                };
+                (term.technique, sampled)
             };
-            (term.technique, sampled)
-        };
         let le = hit.map_or(Vec3::ZERO, |(y, _)| light.emitted(y.n, -wi));
         Some(LightSample {
             wi,
@@ -212,6 +252,7 @@ impl LightSampler {
             le,
             pdf: self.pdf(scene, ctx, wi, hit),
             technique,
+            technique_pdf,
         })
     }
 
@@ -243,25 +284,41 @@ impl LightSampler {
         wi: Vec3,
         hit: Option<(LightPoint, f32)>,
     ) -> f32 {
-        let light = &scene.geometry.lights[ctx.light];
-        let p_light = hit.map_or(0.0, |(y, d)| light.pdf_solid_angle(d, y.n.dot(wi)));
+        let p_light = self.light_pdf(scene, ctx.light, wi, hit);
         if !ctx.uses_portals {
             return p_light;
         }
         let portals: f32 = ctx
             .terms
             .iter()
-            .map(|t| {
-                let p = match t.technique {
-                    Technique::Light => p_light,
-                    Technique::Portal => portal_pdf(&scene.portals[t.portal], ctx.x, wi),
-                    Technique::Projection => t.projection.as_ref().map_or(0.0, |q| q.pdf(wi)),
-                };
-                t.weight * p
-            })
+            .map(|t| t.weight * term_pdf(scene, ctx.x, t, p_light, wi))
             .sum();
         ctx.alpha * p_light + (1.0 - ctx.alpha) * portals
     }
+
+    /// The light technique's pdf `p_L(wi)` for a direction whose light hit is `hit`.
+    pub fn light_pdf(&self, scene: &Scene, light: usize, wi: Vec3, hit: Option<(LightPoint, f32)>) -> f32 {
+        let light = &scene.geometry.lights[light];
+        hit.map_or(0.0, |(y, d)| light.pdf_solid_angle(d, y.n.dot(wi)))
+    }
+}
+
+/// `p_{s_j}(wi | x)`: one portal term's technique density (`p_light` is `p_L(wi)`).
+pub fn term_pdf(scene: &Scene, x: Vec3, term: &PortalTerm, p_light: f32, wi: Vec3) -> f32 {
+    match term.technique {
+        Technique::Light => p_light,
+        Technique::Portal => portal_pdf(&scene.portals[term.portal], x, wi),
+        Technique::Projection => term.projection.as_ref().map_or(0.0, |q| q.pdf(wi)),
+    }
+}
+
+/// A direction through a uniform point of the portal, with its solid-angle pdf.
+pub fn sample_portal(portal: &Portal, x: Vec3, u: Vec2) -> Option<(Vec3, f32)> {
+    let v = portal.polygon.sample_uniform(u) - x;
+    let dist = v.length();
+    let wi = v / dist;
+    let cos = portal.polygon.normal().dot(wi).abs();
+    (dist > 0.0 && cos > 0.0).then(|| (wi, dist * dist / (portal.polygon.area() * cos)))
 }
 
 /// Solid-angle pdf of uniform portal sampling: `d² / (A_P |cos θ_P|)` through the portal.

@@ -46,10 +46,10 @@ struct Shading<'m> {
 }
 
 /// The previous vertex, for weighting emission that BSDF sampling finds.
-struct Previous {
+struct Previous<'c> {
     x: Vec3,
-    /// The context of the light picked there, if any.
-    ctx: Option<LightContext>,
+    /// The context of the light picked there, if one was.
+    ctx: Option<&'c LightContext>,
     bsdf_pdf: f32,
 }
 
@@ -91,7 +91,9 @@ impl<'a> Integrator<'a> {
         let mut l = Vec3::ZERO;
         let mut beta = Vec3::ONE;
         let (mut o, mut d) = (origin, dir);
-        let mut previous: Option<Previous> = None;
+        // Two context buffers, reused in turn by consecutive vertices (see `fill_context`).
+        let mut contexts = [LightContext::new(), LightContext::new()];
+        let mut previous: Option<(Vec3, bool, f32)> = None;
         stats.camera_rays += 1;
         for depth in 0..=self.settings.max_depth {
             let Some(hit) = geometry.bvh.closest_hit(o, d, 0.0, f32::INFINITY) else {
@@ -105,11 +107,16 @@ impl<'a> Integrator<'a> {
             if tri.light != NO_LIGHT {
                 let light = tri.light as usize;
                 let le = geometry.lights[light].emitted(ng, wo);
-                match &previous {
+                match previous {
                     None => l += beta * le,
-                    Some(prev) if le != Vec3::ZERO => {
+                    Some((x, picked, bsdf_pdf)) if le != Vec3::ZERO => {
+                        let prev = Previous {
+                            x,
+                            ctx: picked.then(|| &contexts[(depth as usize + 1) % 2]),
+                            bsdf_pdf,
+                        };
                         let y = LightPoint { p, n: ng };
-                        let light_pdf = self.light_pdf(prev, light, d, y, hit.t);
+                        let light_pdf = self.light_pdf(&prev, light, d, y, hit.t);
                         l += beta * le * power_heuristic(prev.bsdf_pdf, light_pdf);
                     }
                     Some(_) => {}
@@ -124,7 +131,14 @@ impl<'a> Integrator<'a> {
             };
 
             // Next-event estimation through the chosen strategy.
-            let ctx = self.sample_direct(&shading, rng, stats, beta, &mut l);
+            let picked = self.sample_direct(
+                &shading,
+                rng,
+                stats,
+                beta,
+                &mut l,
+                &mut contexts[depth as usize % 2],
+            );
 
             // BSDF sampling: the next ray, and MIS for the light it may hit.
             let Some(bs) = material.sample(shading.wo_local, rng.uniform(), rng.uniform2()) else {
@@ -146,11 +160,7 @@ impl<'a> Integrator<'a> {
                 }
                 beta /= survive;
             }
-            previous = Some(Previous {
-                x: shading.x,
-                ctx,
-                bsdf_pdf: bs.pdf,
-            });
+            previous = Some((shading.x, picked, bs.pdf));
             o = shading.x;
             d = wi;
             stats.bounce_rays += 1;
@@ -182,7 +192,8 @@ impl<'a> Integrator<'a> {
     }
 
     /// Picks a light, draws one sample from the strategy's mixture, traces its shadow ray and
-    /// adds the MIS-weighted contribution to `l`. Returns the light's context for later MIS.
+    /// adds the MIS-weighted contribution to `l`. Leaves the light's context in `ctx` for
+    /// later MIS and returns whether a light was picked.
     fn sample_direct(
         &self,
         s: &Shading,
@@ -190,19 +201,22 @@ impl<'a> Integrator<'a> {
         stats: &mut Stats,
         beta: Vec3,
         l: &mut Vec3,
-    ) -> Option<LightContext> {
+        ctx: &mut LightContext,
+    ) -> bool {
         let u_pick = rng.uniform();
         let u_technique = rng.uniform();
         let u = rng.uniform2();
-        let (light, light_prob) = self.lights.pick_light(u_pick)?;
+        let Some((light, light_prob)) = self.lights.pick_light(u_pick) else {
+            return false;
+        };
         let timed = stats.shading_points() % TIMING_STRIDE == 0;
         let start = timed.then(Instant::now);
-        let ctx = self.lights.context(self.scene, light, s.x);
-        let sample = self.lights.sample(self.scene, &ctx, u_technique, u);
+        self.lights.fill_context(self.scene, light, s.x, ctx);
+        let sample = self.lights.sample(self.scene, ctx, u_technique, u);
         if let Some(start) = start {
             stats.sampling_ns += start.elapsed().as_nanos() as u64 * TIMING_STRIDE;
         }
-        if ctx.uses_portals {
+        if ctx.has_portals {
             stats.count_region(ctx.region);
         } else {
             stats.no_portal += 1;
@@ -214,7 +228,7 @@ impl<'a> Integrator<'a> {
             }
             None => stats.empty_samples += 1,
         }
-        Some(ctx)
+        true
     }
 
     /// A light sample's contribution, weighted against BSDF sampling by the power heuristic.
@@ -249,7 +263,7 @@ impl<'a> Integrator<'a> {
             return 0.0;
         }
         let hit = Some((y, t));
-        let q = match &prev.ctx {
+        let q = match prev.ctx {
             Some(ctx) if ctx.light == light => self.lights.pdf(self.scene, ctx, d, hit),
             _ => {
                 let ctx = self.lights.context(self.scene, light, prev.x);
