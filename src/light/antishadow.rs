@@ -1,1 +1,719 @@
-//! Antishadow geometry (to be written).
+//! The antishadow of a (portal, light) pair: which of the regions of METHOD.md a shading point
+//! `x` lies in, decided by precomputed planes through an edge of one polygon and a vertex of the
+//! other ([`AntishadowPlanes`]), and by an independent brute-force classifier that projects the
+//! light through the portal ([`classify_brute_force`]) to test it against.
+//!
+//! Conventions: the portal's normal is its front (pointing away from the light); the light's
+//! normal is its emitting side, facing the portal. `C(x)` are the directions from `x` that hit
+//! the part of the light behind the portal plane, `D(x)` those through the portal.
+//!
+//! The planes are built in f64 from the f32 vertices and rounded once: planes through a short
+//! edge, or through a vertex that rounding left a hair off the other polygon's plane, would
+//! otherwise tilt by up to 1e-3 rad.
+
+use glam::{DVec3, Vec3};
+
+use crate::sampling::polygon::{ConvexPolygon, MAX_CLIP_VERTICES, Plane, Verts};
+
+/// Where `x` lies relative to one portal of a light.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Region {
+    /// Not strictly in front of the portal plane: the portal is irrelevant to `x`.
+    Behind,
+    /// `C ∩ D` is empty (or `x` is not on the light's emitting side).
+    Outside,
+    /// `C ⊆ D`: every path to the light goes through the portal.
+    Antiumbra,
+    /// `C ∩ D` non-empty, neither contains the other.
+    Antipenumbra,
+    /// `D ⊆ C`: every direction through the portal hits the light.
+    Antiantumbra,
+}
+
+impl Region {
+    pub const ALL: [Region; 5] = [
+        Region::Behind,
+        Region::Outside,
+        Region::Antiumbra,
+        Region::Antipenumbra,
+        Region::Antiantumbra,
+    ];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Region::Behind => "behind",
+            Region::Outside => "outside",
+            Region::Antiumbra => "antiumbra",
+            Region::Antipenumbra => "antipenumbra",
+            Region::Antiantumbra => "antiantumbra",
+        }
+    }
+}
+
+/// Why no antishadow planes exist for a (portal, light) pair; the caller names the nodes.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum AntishadowError {
+    #[error(
+        "no part of the light lies behind the portal's plane (the portal's front must face away from the light)"
+    )]
+    LightInFrontOfPortal,
+    #[error("the portal is not wholly on the light's emitting side")]
+    PortalBehindLight,
+    #[error("degenerate portal and light: no {0} plane could be built")]
+    Degenerate(&'static str),
+}
+
+/// Relative to the scene's diameter: how far a vertex must be behind (in front of) a plane to
+/// count as strictly behind (in front), and how close clipped light vertices are merged.
+const STRICT_TOLERANCE: f64 = 1e-5;
+/// Relative to the scene's diameter: a vertex this close to an edge's line spans no plane.
+const COLLINEAR_TOLERANCE: f64 = 1e-6;
+/// Relative to the scene's diameter: slack when checking (in f64) that each chosen plane has
+/// every vertex of the other polygon on its required side. Violations are ~1e-15 in practice.
+const SIDE_TOLERANCE: f64 = 1e-6;
+/// Relative to the scene's diameter: how close (in f32) a vertex must be to a plane to count as
+/// lying on it in [`AntishadowPlanes::volume_edges`].
+const ON_PLANE_TOLERANCE: f32 = 1e-4;
+
+/// One plane per edge; a clipped light has at most `MAX_POLYGON_VERTICES + 1` edges.
+type Planes = arrayvec::ArrayVec<Plane, MAX_CLIP_VERTICES>;
+
+/// The planes that bound the antishadow volumes of one (portal, light) pair, computed once;
+/// [`AntishadowPlanes::classify`] then costs at most `2(|P| + |L|) + 2` dot products, `|L|`
+/// counting the vertices of the light clipped behind the portal plane (at most one more than
+/// the light's), the 2 for the portal and light planes.
+#[derive(Clone, Debug)]
+pub struct AntishadowPlanes {
+    portal: ConvexPolygon,
+    /// The light clipped to behind the portal plane, counter-clockwise around the light normal.
+    light_behind: Verts,
+    /// Positive in front of the portal.
+    portal_plane: Plane,
+    /// Positive on the light's emitting side.
+    light_plane: Plane,
+    /// One per portal edge `(p_i, p_{i+1})`; positive on the portal's side.
+    antiumbra: Planes,
+    portal_overlap: Planes,
+    /// One per edge `(l_j, l_{j+1})` of `light_behind`; the light is on their negative side.
+    antiantumbra: Planes,
+    light_overlap: Planes,
+    /// Diameter of portal and light together: the scale of every tolerance.
+    scale: f32,
+}
+
+/// An edge of the antiumbra or antiantumbra volume: the segment from a portal vertex to a light
+/// vertex that lies on both planes of that volume meeting at the portal (light) vertex. Extended
+/// beyond the portal it bounds the volume in front of the portal.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct VolumeEdge {
+    pub portal_vertex: Vec3,
+    pub light_vertex: Vec3,
+    /// [`Region::Antiumbra`] or [`Region::Antiantumbra`].
+    pub region: Region,
+}
+
+impl AntishadowPlanes {
+    /// Builds the planes of METHOD.md ("Classifying x with precomputed planes") for `portal`
+    /// (normal = front, away from the light) and `light` (normal = emitting side, toward the
+    /// portal).
+    pub fn new(portal: &ConvexPolygon, light: &ConvexPolygon) -> Result<Self, AntishadowError> {
+        let scale = f64::from(diameter(portal.vertices().iter().chain(light.vertices())));
+        let strict = STRICT_TOLERANCE * scale;
+        let (portal_plane, light_plane) = (PlaneF64::of(portal), PlaneF64::of(light));
+        // The portal is a window in its plane (the brute force clips with prisms perpendicular
+        // to it), so its vertices are put exactly on it.
+        let portal_vertices: Vec<DVec3> = portal
+            .vertices()
+            .iter()
+            .map(|v| portal_plane.project(v.as_dvec3()))
+            .collect();
+        let light_vertices: Vec<DVec3> = light.vertices().iter().map(|v| v.as_dvec3()).collect();
+
+        // The method's precondition: only the light behind the portal plane is seen through it.
+        let deepest = light_vertices
+            .iter()
+            .map(|&l| -portal_plane.signed_distance(l))
+            .fold(f64::NEG_INFINITY, f64::max);
+        // Vertices are finite (`ConvexPolygon` checks), so no NaN reaches these comparisons.
+        if deepest <= strict {
+            return Err(AntishadowError::LightInFrontOfPortal);
+        }
+        let light_behind = merge_close(&clip_f64(&light_vertices, portal_plane.flipped()), strict);
+        if light_behind.len() < 3 {
+            return Err(AntishadowError::LightInFrontOfPortal);
+        }
+        if light_behind.len() > MAX_CLIP_VERTICES {
+            return Err(AntishadowError::Degenerate("clipped light"));
+        }
+
+        let (lowest, highest) = portal_vertices
+            .iter()
+            .map(|&p| light_plane.signed_distance(p))
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), h| {
+                (lo.min(h), hi.max(h))
+            });
+        if lowest < -strict || highest <= strict {
+            return Err(AntishadowError::PortalBehindLight);
+        }
+
+        let (antiumbra, portal_overlap) = edge_planes(
+            &portal_vertices,
+            portal_plane.n,
+            -1.0,
+            &light_behind,
+            scale,
+            "antiumbra",
+        )?;
+        let (light_overlap, antiantumbra) = edge_planes(
+            &light_behind,
+            light_plane.n,
+            1.0,
+            &portal_vertices,
+            scale,
+            "antiantumbra",
+        )?;
+        // By the construction the antiumbra planes keep the light on their positive side and
+        // the antiantumbra planes keep the portal on their negative side; overlap planes the
+        // reverse. Check it, so that a numerical surprise is an error and not a wrong region.
+        let tol = SIDE_TOLERANCE * scale;
+        let all = |planes: &[PlaneF64], vertices: &[DVec3], sign: f64| {
+            planes.iter().all(|q| {
+                vertices
+                    .iter()
+                    .all(|&v| sign * q.signed_distance(v) >= -tol)
+            })
+        };
+        if !all(&antiumbra, &light_behind, 1.0) || !all(&antiantumbra, &portal_vertices, -1.0) {
+            return Err(AntishadowError::Degenerate("antiumbra or antiantumbra"));
+        }
+        if !all(&portal_overlap, &light_behind, -1.0) || !all(&light_overlap, &portal_vertices, 1.0)
+        {
+            return Err(AntishadowError::Degenerate("overlap"));
+        }
+
+        let to_f32 = |planes: &[PlaneF64]| planes.iter().map(|q| q.to_f32()).collect::<Planes>();
+        Ok(AntishadowPlanes {
+            portal: portal.clone(),
+            light_behind: light_behind.iter().map(|v| v.as_vec3()).collect(),
+            portal_plane: portal_plane.to_f32(),
+            light_plane: light_plane.to_f32(),
+            antiumbra: to_f32(&antiumbra),
+            portal_overlap: to_f32(&portal_overlap),
+            antiantumbra: to_f32(&antiantumbra),
+            light_overlap: to_f32(&light_overlap),
+            scale: scale as f32,
+        })
+    }
+
+    /// The region of `x`, in the order of METHOD.md. Points on a plane count as outside the
+    /// volume it bounds; a NaN `x` is [`Region::Behind`]. No allocation.
+    pub fn classify(&self, x: Vec3) -> Region {
+        let positive = |q: &Plane| q.signed_distance(x) > 0.0;
+        if !positive(&self.portal_plane) {
+            return Region::Behind;
+        }
+        // The pencil arguments behind the light-edge planes need x on the emitting side.
+        if !positive(&self.light_plane) {
+            return Region::Outside;
+        }
+        if !self.portal_overlap.iter().all(positive) || !self.light_overlap.iter().all(positive) {
+            return Region::Outside;
+        }
+        if self.antiumbra.iter().all(positive) {
+            Region::Antiumbra
+        } else if self.antiantumbra.iter().all(positive) {
+            Region::Antiantumbra
+        } else {
+            Region::Antipenumbra
+        }
+    }
+
+    pub fn portal(&self) -> &ConvexPolygon {
+        &self.portal
+    }
+
+    /// The light clipped to behind the portal plane (counter-clockwise around the light normal).
+    pub fn light_behind_portal(&self) -> &[Vec3] {
+        &self.light_behind
+    }
+
+    /// Positive in front of the portal.
+    pub fn portal_plane(&self) -> Plane {
+        self.portal_plane
+    }
+
+    /// Positive on the light's emitting side.
+    pub fn light_plane(&self) -> Plane {
+        self.light_plane
+    }
+
+    /// The smallest `|signed distance|` from `x` to any plane [`Self::classify`] tests: near 0,
+    /// a tiny error in `x` or in the planes may change the region.
+    pub fn planes_distance(&self, x: Vec3) -> f32 {
+        [self.portal_plane, self.light_plane]
+            .iter()
+            .chain(&self.antiumbra)
+            .chain(&self.portal_overlap)
+            .chain(&self.antiantumbra)
+            .chain(&self.light_overlap)
+            .map(|q| q.signed_distance(x).abs())
+            .fold(f32::INFINITY, f32::min)
+    }
+
+    /// Edges of the antiumbra and antiantumbra volumes, for drawing (best effort): a segment
+    /// `portal vertex → light vertex` is returned for a volume when the light (portal) vertex
+    /// lies, within tolerance, on both of that volume's planes through the portal (light)
+    /// vertex. When those two planes pass through different vertices of the other polygon,
+    /// they meet in a line through neither, and nothing is returned for that corner. A segment
+    /// may be returned for both volumes (aligned polygons, where their planes coincide).
+    pub fn volume_edges(&self) -> impl Iterator<Item = VolumeEdge> + '_ {
+        let tol = ON_PLANE_TOLERANCE * self.scale;
+        let on_both = move |a: &Plane, b: &Plane, v: Vec3| {
+            a.signed_distance(v).abs() <= tol && b.signed_distance(v).abs() <= tol
+        };
+        let portal = self.portal.vertices();
+        let light = &self.light_behind[..];
+        let (np, nl) = (portal.len(), light.len());
+        // Vertex i is shared by edges i - 1 and i, whose planes are stored at those indices.
+        let antiumbra = (0..np).flat_map(move |i| {
+            let (a, b) = (&self.antiumbra[(i + np - 1) % np], &self.antiumbra[i]);
+            light
+                .iter()
+                .filter(move |&&l| on_both(a, b, l))
+                .map(move |&l| VolumeEdge {
+                    portal_vertex: portal[i],
+                    light_vertex: l,
+                    region: Region::Antiumbra,
+                })
+        });
+        let antiantumbra = (0..nl).flat_map(move |j| {
+            let (a, b) = (&self.antiantumbra[(j + nl - 1) % nl], &self.antiantumbra[j]);
+            portal
+                .iter()
+                .filter(move |&&p| on_both(a, b, p))
+                .map(move |&p| VolumeEdge {
+                    portal_vertex: p,
+                    light_vertex: light[j],
+                    region: Region::Antiantumbra,
+                })
+        });
+        antiumbra.chain(antiantumbra)
+    }
+}
+
+/// A plane in f64, `n · p = d` with `n` of unit length.
+#[derive(Clone, Copy, Debug)]
+struct PlaneF64 {
+    n: DVec3,
+    d: f64,
+}
+
+impl PlaneF64 {
+    /// A polygon's plane, through its vertices' mean, with `n` from Newell's formula around the
+    /// first vertex. ([`ConvexPolygon::normal`] sums cross products of absolute positions, which
+    /// for a polygon far from the origin relative to its size costs digits: 5e-6 rad was seen.)
+    fn of(polygon: &ConvexPolygon) -> Self {
+        let vertices = polygon.vertices();
+        let v0 = vertices[0].as_dvec3();
+        let twice_area: DVec3 = vertices
+            .windows(2)
+            .skip(1)
+            .map(|w| (w[0].as_dvec3() - v0).cross(w[1].as_dvec3() - v0))
+            .sum();
+        // The winding fixes the orientation; `ConvexPolygon` guarantees a non-zero area.
+        let n = twice_area
+            .try_normalize()
+            .unwrap_or(polygon.normal().as_dvec3());
+        let mean = vertices.iter().map(|v| v.as_dvec3()).sum::<DVec3>() / vertices.len() as f64;
+        PlaneF64 { n, d: n.dot(mean) }
+    }
+
+    fn signed_distance(&self, p: DVec3) -> f64 {
+        self.n.dot(p) - self.d
+    }
+
+    fn flipped(self) -> Self {
+        PlaneF64 {
+            n: -self.n,
+            d: -self.d,
+        }
+    }
+
+    fn project(&self, p: DVec3) -> DVec3 {
+        p - self.n * self.signed_distance(p)
+    }
+
+    fn to_f32(self) -> Plane {
+        let n = self.n.as_vec3();
+        // Offset through the plane's point nearest the origin, for the rounded normal.
+        let d = n.as_dvec3().dot(self.n * self.d);
+        Plane { n, d: d as f32 }
+    }
+}
+
+/// For each edge `(a, b)` of the polygon `vertices` (counter-clockwise around `normal`), the two
+/// extreme planes of the pencil through `a`, `b` and each vertex of `other`: first the one with
+/// all of `other` on its positive side, then the one with all of `other` on its negative side.
+/// `other` lies on the side `side · normal` (within rounding): -1 for the portal, whose light is
+/// behind it, giving (antiumbra, overlap) planes positive on the portal's side; +1 for the light,
+/// whose portal is on its emitting side, giving (overlap, antiantumbra) planes with the light on
+/// their negative side.
+///
+/// In the cross-section across the edge, with `u = normal × e` pointing into the polygon and
+/// `v = normal`, a candidate through `o` at angle θ (from `u` toward `v`) has the normal
+/// `e × (o − a) ∝ −sin θ·u + cos θ·v`, which is the orientation METHOD.md asks for, and `o'` is
+/// on its positive side iff `sin(θ' − θ) > 0`. As all of `other` lies in one half-plane, the
+/// planes sought are the candidates of smallest and largest θ. Choosing by angle rather than by
+/// testing each candidate's sides also handles vertices on the polygon's own plane (a light
+/// clipped by the portal plane), where the candidate is that plane and orienting it by the
+/// centroid is undefined. The angle is measured from the middle of the half-plane, `side · v`,
+/// with `atan2`: `cos θ` would be flat at the half-plane's edges, exactly where such vertices are.
+fn edge_planes(
+    vertices: &[DVec3],
+    normal: DVec3,
+    side: f64,
+    other: &[DVec3],
+    scale: f64,
+    what: &'static str,
+) -> Result<(Vec<PlaneF64>, Vec<PlaneF64>), AntishadowError> {
+    let n = vertices.len();
+    let mut first = Vec::with_capacity(n);
+    let mut second = Vec::with_capacity(n);
+    for i in 0..n {
+        let (a, b) = (vertices[i], vertices[(i + 1) % n]);
+        let e = (b - a).normalize_or_zero();
+        let u = normal.cross(e);
+        let mut lowest: Option<(f64, DVec3)> = None;
+        let mut highest: Option<(f64, DVec3)> = None;
+        for &o in other {
+            let w = o - a;
+            let w_perp = w - e * w.dot(e);
+            let len = w_perp.length();
+            // `o` on the edge's line spans no plane; the other vertices decide.
+            if len <= COLLINEAR_TOLERANCE * scale {
+                continue;
+            }
+            // θ minus the angle of `side · v`, in (-π, π]; it wraps only straight opposite.
+            let theta = (-side * w_perp.dot(u)).atan2(side * w_perp.dot(normal));
+            let m = e.cross(w_perp) / len;
+            if lowest.is_none_or(|(t, _)| theta < t) {
+                lowest = Some((theta, m));
+            }
+            if highest.is_none_or(|(t, _)| theta > t) {
+                highest = Some((theta, m));
+            }
+        }
+        let (Some((_, lo)), Some((_, hi))) = (lowest, highest) else {
+            return Err(AntishadowError::Degenerate(what));
+        };
+        first.push(PlaneF64 {
+            n: lo,
+            d: lo.dot(a),
+        });
+        second.push(PlaneF64 {
+            n: hi,
+            d: hi.dot(a),
+        });
+    }
+    Ok((first, second))
+}
+
+/// Sutherland–Hodgman in f64: keeps the part of `vertices` on the positive side of `plane`.
+/// Cut points land on the plane to f64 precision, which the plane construction relies on.
+fn clip_f64(vertices: &[DVec3], plane: PlaneF64) -> Vec<DVec3> {
+    let mut out = Vec::with_capacity(vertices.len() + 1);
+    let k = vertices.len();
+    for i in 0..k {
+        let (a, b) = (vertices[i], vertices[(i + 1) % k]);
+        let (da, db) = (plane.signed_distance(a), plane.signed_distance(b));
+        if da >= 0.0 {
+            out.push(a);
+        }
+        if (da >= 0.0) != (db >= 0.0) {
+            out.push(a + da / (da - db) * (b - a));
+        }
+    }
+    out
+}
+
+/// Drops vertices within `tol` of their predecessor: clipping repeats a vertex that lies on
+/// the plane, and a very short edge would give planes with an ill-defined direction.
+fn merge_close(vertices: &[DVec3], tol: f64) -> Vec<DVec3> {
+    let mut out: Vec<DVec3> = Vec::with_capacity(vertices.len());
+    for &v in vertices {
+        if out.last().is_none_or(|&q| q.distance(v) > tol) {
+            out.push(v);
+        }
+    }
+    while out.len() > 1 && out[0].distance(out[out.len() - 1]) <= tol {
+        out.pop();
+    }
+    out
+}
+
+fn diameter<'a>(points: impl Iterator<Item = &'a Vec3>) -> f32 {
+    let (lo, hi) = points.fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), &p| {
+        (lo.min(p), hi.max(p))
+    });
+    (hi - lo).length().max(f32::MIN_POSITIVE)
+}
+
+/// Relative area tolerance of [`classify_brute_force`]: the overlap counts as empty below
+/// `BRUTE_FORCE_AREA_TOLERANCE` times the smaller of the two areas, and as the whole of the
+/// projected light (the portal) within that fraction of its area. Near a plane the overlap grows
+/// with the square of the distance from it, scaled down by the ratio of the light's depth to
+/// x's height, so relative areas of 1e-9 occur a thousandth of the scene size from a plane;
+/// f64 rounding (about 1e-15 here) stays far below.
+pub const BRUTE_FORCE_AREA_TOLERANCE: f64 = 1e-12;
+
+/// The region of `x` found without the planes: project the part of `light` behind the portal
+/// plane from `x` onto that plane, clip it against the portal and compare the areas of the
+/// projection, the portal and their intersection. A slow reference for tests, computed in f64
+/// from the f32 inputs: in f32 the areas of thin overlaps drown in rounding.
+pub fn classify_brute_force(portal: &ConvexPolygon, light: &ConvexPolygon, x: Vec3) -> Region {
+    let x = x.as_dvec3();
+    let (portal_plane, light_plane) = (PlaneF64::of(portal), PlaneF64::of(light));
+    let height = portal_plane.signed_distance(x);
+    // Written as "in front" tests so that a NaN x is behind, as in `classify`.
+    let in_front_of_portal = height > 0.0;
+    if !in_front_of_portal {
+        return Region::Behind;
+    }
+    let on_emitting_side = light_plane.signed_distance(x) > 0.0;
+    if !on_emitting_side {
+        return Region::Outside;
+    }
+    let light_vertices: Vec<DVec3> = light.vertices().iter().map(|v| v.as_dvec3()).collect();
+    let behind = clip_f64(&light_vertices, portal_plane.flipped());
+    if behind.len() < 3 {
+        return Region::Outside;
+    }
+    // Central projection from x: each v is behind or on the plane and x strictly in front, so
+    // the segment x→v crosses the plane once, at 0 < t <= 1.
+    let projected: Vec<DVec3> = behind
+        .iter()
+        .map(|&v| x + height / (height - portal_plane.signed_distance(v)) * (v - x))
+        .collect();
+    // Sutherland–Hodgman against the prism over each portal edge: with counter-clockwise
+    // vertices around the portal normal, `n × edge` points inward. The subject's winding does
+    // not matter (it comes out either way, depending on x), as areas are taken unsigned.
+    let portal_vertices: Vec<DVec3> = portal
+        .vertices()
+        .iter()
+        .map(|v| portal_plane.project(v.as_dvec3()))
+        .collect();
+    let n = portal_vertices.len();
+    let mut overlap = projected.clone();
+    for i in 0..n {
+        if overlap.len() < 3 {
+            break;
+        }
+        let (a, b) = (portal_vertices[i], portal_vertices[(i + 1) % n]);
+        let inward = portal_plane.n.cross(b - a).normalize_or_zero();
+        overlap = clip_f64(
+            &overlap,
+            PlaneF64 {
+                n: inward,
+                d: inward.dot(a),
+            },
+        );
+    }
+    let area_c = fan_area(&projected);
+    let area_d = fan_area(&portal_vertices);
+    let area_cd = if overlap.len() < 3 {
+        0.0
+    } else {
+        fan_area(&overlap)
+    };
+    let tol = BRUTE_FORCE_AREA_TOLERANCE;
+    if area_cd <= tol * area_c.min(area_d) {
+        Region::Outside
+    } else if area_c - area_cd <= tol * area_c {
+        Region::Antiumbra
+    } else if area_d - area_cd <= tol * area_d {
+        Region::Antiantumbra
+    } else {
+        Region::Antipenumbra
+    }
+}
+
+/// The area of a convex polygon as a fan around its first vertex: relative coordinates keep
+/// the rounding error proportional to the polygon's size, not to its distance from the origin.
+fn fan_area(vertices: &[DVec3]) -> f64 {
+    let Some(&v0) = vertices.first() else {
+        return 0.0;
+    };
+    let twice: DVec3 = vertices
+        .windows(2)
+        .skip(1)
+        .map(|w| (w[0] - v0).cross(w[1] - v0))
+        .sum();
+    0.5 * twice.length()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn square(center: Vec3, half: f32) -> ConvexPolygon {
+        let corners = [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)];
+        let points: Vec<Vec3> = corners
+            .iter()
+            .map(|&(a, b)| center + half * Vec3::new(a, b, 0.0))
+            .collect();
+        ConvexPolygon::new(&points).unwrap()
+    }
+
+    /// Portal [-1, 1]² at z = 0 facing +z; light [-2, 2]² at z = -1 facing +z. On the axis the
+    /// light projects to half-width 2z / (z + 1): inside the portal below z = 1, around it above.
+    fn aligned() -> (ConvexPolygon, ConvexPolygon) {
+        (square(Vec3::ZERO, 1.0), square(-Vec3::Z, 2.0))
+    }
+
+    #[test]
+    fn aligned_squares_hand_placed_points() {
+        let (portal, light) = aligned();
+        let planes = AntishadowPlanes::new(&portal, &light).unwrap();
+        let cases = [
+            (Vec3::new(0.0, 0.0, -0.5), Region::Behind),
+            (Vec3::new(0.3, -0.2, -0.01), Region::Behind),
+            (Vec3::new(0.0, 0.0, 0.5), Region::Antiumbra),
+            (Vec3::new(0.2, 0.1, 0.2), Region::Antiumbra),
+            (Vec3::new(0.0, 0.0, 3.0), Region::Antiantumbra),
+            (Vec3::new(0.1, -0.1, 10.0), Region::Antiantumbra),
+            (Vec3::new(1.0, 0.0, 0.5), Region::Antipenumbra),
+            (Vec3::new(0.0, 2.0, 1.0), Region::Antipenumbra),
+            (Vec3::new(10.0, 0.0, 0.5), Region::Outside),
+            (Vec3::new(-5.0, 5.0, 0.2), Region::Outside),
+        ];
+        for (x, expected) in cases {
+            assert_eq!(planes.classify(x), expected, "planes at {x}");
+            assert_eq!(
+                classify_brute_force(&portal, &light, x),
+                expected,
+                "brute force at {x}"
+            );
+        }
+        // The on-axis switch from antiumbra to antiantumbra is at z = 1.
+        assert_eq!(
+            planes.classify(Vec3::new(0.0, 0.0, 0.99)),
+            Region::Antiumbra
+        );
+        assert_eq!(
+            planes.classify(Vec3::new(0.0, 0.0, 1.01)),
+            Region::Antiantumbra
+        );
+        assert!(
+            (planes.planes_distance(Vec3::new(0.0, 0.0, 0.99)) - 0.01 / 2f32.sqrt()).abs() < 1e-4
+        );
+    }
+
+    #[test]
+    fn outside_when_not_on_the_emitting_side() {
+        // A light facing away from the portal's direction except for a sliver: tilt it so that
+        // points in front of the portal can be behind the light's plane.
+        let portal = square(Vec3::ZERO, 1.0);
+        let tilted: Vec<Vec3> = [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)]
+            .iter()
+            .map(|&(a, b)| Vec3::new(3.0 + 0.5 * a, b, -1.0 + 0.5 * a))
+            .collect();
+        let light = ConvexPolygon::new(&tilted).unwrap();
+        // Normal ∝ (-1, 0, 1): emitting up and toward the portal.
+        assert!(light.normal().x < 0.0 && light.normal().z > 0.0);
+        let planes = AntishadowPlanes::new(&portal, &light).unwrap();
+        let x = Vec3::new(6.0, 0.0, 0.5);
+        assert!(planes.light_plane().signed_distance(x) < 0.0);
+        assert_eq!(planes.classify(x), Region::Outside);
+        assert_eq!(classify_brute_force(&portal, &light, x), Region::Outside);
+    }
+
+    #[test]
+    fn errors() {
+        let (portal, light) = aligned();
+        // The portal facing the light: the light is in front of it.
+        assert_eq!(
+            AntishadowPlanes::new(&portal.flipped(), &light).unwrap_err(),
+            AntishadowError::LightInFrontOfPortal
+        );
+        // The light emitting away from the portal.
+        assert_eq!(
+            AntishadowPlanes::new(&portal, &light.flipped()).unwrap_err(),
+            AntishadowError::PortalBehindLight
+        );
+        // A light in the portal plane has nothing strictly behind it.
+        assert_eq!(
+            AntishadowPlanes::new(&portal, &square(Vec3::ZERO, 3.0)).unwrap_err(),
+            AntishadowError::LightInFrontOfPortal
+        );
+        assert!(!AntishadowError::PortalBehindLight.to_string().is_empty());
+    }
+
+    #[test]
+    fn light_straddling_the_portal_plane_is_clipped() {
+        // The light tilted through the portal plane: only z <= 0 (x <= 1.2) of it remains.
+        // (Not x <= 1: a clipped edge on a portal edge's line would make "D ⊆ C" hinge on
+        // rounding everywhere, far from any plane.)
+        let portal = square(Vec3::ZERO, 1.0);
+        let points: Vec<Vec3> = [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)]
+            .iter()
+            .map(|&(a, b)| Vec3::new(1.5 * a, 1.5 * b, -0.48 + 0.6 * a))
+            .collect();
+        let light = ConvexPolygon::new(&points).unwrap();
+        let planes = AntishadowPlanes::new(&portal, &light).unwrap();
+        assert!(planes.light_behind_portal().iter().all(|v| v.z <= 1e-6));
+        assert!(
+            planes
+                .light_behind_portal()
+                .iter()
+                .any(|v| v.z.abs() <= 1e-6)
+        );
+        let mut seen = [0usize; 5];
+        for i in 0..21 {
+            for k in 0..21 {
+                for z in [0.05, 0.3, 1.0, 3.0, 8.0] {
+                    let x = Vec3::new(-5.0 + 0.5 * i as f32, -5.0 + 0.5 * k as f32, z);
+                    if planes.planes_distance(x) < 1e-3 {
+                        continue;
+                    }
+                    let region = planes.classify(x);
+                    assert_eq!(region, classify_brute_force(&portal, &light, x), "at {x}");
+                    seen[region as usize] += 1;
+                }
+            }
+        }
+        for region in [Region::Outside, Region::Antipenumbra, Region::Antiantumbra] {
+            assert!(seen[region as usize] > 0, "{region:?} never seen: {seen:?}");
+        }
+    }
+
+    #[test]
+    fn aligned_volume_edges_join_corresponding_corners() {
+        let (portal, light) = aligned();
+        let planes = AntishadowPlanes::new(&portal, &light).unwrap();
+        let edges: Vec<VolumeEdge> = planes.volume_edges().collect();
+        for region in [Region::Antiumbra, Region::Antiantumbra] {
+            let of_region: Vec<_> = edges.iter().filter(|e| e.region == region).collect();
+            assert_eq!(of_region.len(), 4, "{region:?}: {edges:?}");
+            for e in of_region {
+                // Corresponding corners: the light corner is twice the portal corner, 1 below.
+                let expected = Vec3::new(2.0 * e.portal_vertex.x, 2.0 * e.portal_vertex.y, -1.0);
+                assert!(e.light_vertex.abs_diff_eq(expected, 1e-5), "{e:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn region_names() {
+        let names: Vec<&str> = Region::ALL.iter().map(|r| r.name()).collect();
+        assert_eq!(
+            names,
+            [
+                "behind",
+                "outside",
+                "antiumbra",
+                "antipenumbra",
+                "antiantumbra"
+            ]
+        );
+    }
+}

@@ -49,6 +49,11 @@ impl Strategy {
     /// The technique a portal term uses for a point in `region` (in front of the portal and
     /// not outside its antishadow); `None` for light sampling, which ignores portals.
     pub fn technique(self, region: Region) -> Option<Technique> {
+        // Behind the portal or outside its antishadow, no direction through it reaches the
+        // light: the portal gets no weight under any strategy.
+        if matches!(region, Region::Behind | Region::Outside) {
+            return None;
+        }
         match self {
             Strategy::Light => None,
             Strategy::Portal => Some(Technique::Portal),
@@ -56,8 +61,7 @@ impl Strategy {
             Strategy::Antishadow => match region {
                 Region::Antiumbra => Some(Technique::Light),
                 Region::Antiantumbra => Some(Technique::Portal),
-                Region::Antipenumbra => Some(Technique::Projection),
-                Region::Behind | Region::Outside => None,
+                _ => Some(Technique::Projection),
             },
         }
     }

@@ -269,11 +269,15 @@ fn diameter(points: &[Vec3]) -> f32 {
     (hi - lo).length().max(f32::MIN_POSITIVE)
 }
 
-/// Twice the vector area of a closed polygon (Newell's method).
+/// Twice the vector area of a closed polygon (Newell's method), relative to its first vertex
+/// so that polygons far from the origin keep their precision.
 pub fn newell_normal(vertices: &[Vec3]) -> Vec3 {
+    let Some(&v0) = vertices.first() else {
+        return Vec3::ZERO;
+    };
     let n = vertices.len();
     (0..n)
-        .map(|i| vertices[i].cross(vertices[(i + 1) % n]))
+        .map(|i| (vertices[i] - v0).cross(vertices[(i + 1) % n] - v0))
         .sum()
 }
 

@@ -8,17 +8,19 @@ use super::polygon::{MAX_CLIP_VERTICES, Plane, Verts, sample_polygon_area};
 
 /// Below this solid angle (sr) a [`SphericalPolygon`] is sampled by area instead of by solid angle.
 ///
-/// 1e-4 sr is a cone of half-angle ≈ 0.0056 rad (a 1 cm square at 1 m). Below it, spherical
-/// sampling has nothing left to gain: `d² / |cos θ|` varies across a non-grazing polygon by well
-/// under 1 %, so area sampling is as good and needs no trigonometry. Above it, it matters for
-/// correctness too: the angles of such triangles are a few hundred f32 ulps or fewer, so the
-/// classic angle-sum formulas lose most of their digits (angle-sum Arvo measured at 1e-3 to 1e-2
-/// relative error in the sampled position at 1e-4 sr, see `tests/sampling.rs`). The formulation
-/// below avoids those cancellations and the fallback keeps the remaining ones out of reach.
+/// 1e-4 sr is a cone of half-angle ≈ 0.0056 rad (a 1 cm square at 1 m). Below it, solid-angle
+/// sampling has little left to gain: `d² / |cos θ|` varies across a polygon seen head-on by about
+/// its angular size (< 1 %), so area sampling is nearly as good, and it needs no trigonometry.
+/// It is also where spherical sampling in f32 stops being trustworthy: with Arvo's angle-based
+/// formulas (pbrt-v4's form) the sampled point is off by ~8 % of the triangle's size at 1e-2 sr
+/// and by all of it at 1e-4 sr (`tests/sampling.rs` measures this). The form used here stays within
+/// a few f32 ulps (5e-5 of the size at 1e-4 sr, 6e-4 at 1e-6 sr), so the threshold is a margin,
+/// not a cliff; area sampling's pdf stays exact at any size.
 pub const SMALL_SOLID_ANGLE: f32 = 1e-4;
 
-/// Fan triangles below this solid angle (sr) are not sampled: their vertices are within ~1e-6 rad,
-/// about 20 f32 ulps of a unit vector, so rounding has erased their shape.
+/// Triangles below this solid angle (sr) count as degenerate: their vertices are within ~1e-6 rad,
+/// about 20 f32 ulps of a unit vector, so rounding has erased their shape. (A polygon's fan
+/// triangle this small is picked with probability ≤ 1e-8, since such polygons are area-sampled.)
 const MIN_TRIANGLE_SOLID_ANGLE: f32 = 1e-12;
 
 /// Slack of the inside test, in radians off an edge: a sample on an edge can round to ~1e-7 rad
@@ -59,7 +61,7 @@ fn solid_angle_f64(a: DVec3, b: DVec3, c: DVec3) -> f64 {
 /// every quantity formed from vertex differences.
 pub fn sample_spherical_triangle(a: Vec3, b: Vec3, c: Vec3, u: Vec2) -> Option<Vec3> {
     let area = spherical_triangle_solid_angle(a, b, c);
-    if !(area > MIN_TRIANGLE_SOLID_ANGLE) {
+    if area.is_nan() || area <= MIN_TRIANGLE_SOLID_ANGLE {
         return None;
     }
     // The arc a → c: unit tangent `t` at `a`, and its length.
@@ -95,7 +97,7 @@ pub fn sample_spherical_triangle(a: Vec3, b: Vec3, c: Vec3, u: Vec2) -> Option<V
 /// `1/Ω` inside the triangle (boundary included), else 0.
 pub fn spherical_triangle_pdf(a: Vec3, b: Vec3, c: Vec3, w: Vec3) -> f32 {
     let area = spherical_triangle_solid_angle(a, b, c);
-    if !(area > MIN_TRIANGLE_SOLID_ANGLE) {
+    if area.is_nan() || area <= MIN_TRIANGLE_SOLID_ANGLE {
         return 0.0;
     }
     let orientation = a.dot((b - a).cross(c - a)).signum();
@@ -109,7 +111,7 @@ pub fn spherical_triangle_pdf(a: Vec3, b: Vec3, c: Vec3, w: Vec3) -> f32 {
 /// triangle); `None` for a degenerate triangle or `w` at vertex `b`.
 pub fn invert_spherical_triangle_sample(a: Vec3, b: Vec3, c: Vec3, w: Vec3) -> Option<Vec2> {
     let area = spherical_triangle_solid_angle(a, b, c);
-    if !(area > MIN_TRIANGLE_SOLID_ANGLE) {
+    if area.is_nan() || area <= MIN_TRIANGLE_SOLID_ANGLE {
         return None;
     }
     // c' is where the great circle through b and w meets the arc a → c.
@@ -153,6 +155,11 @@ fn angle_between(a: Vec3, b: Vec3) -> f32 {
 
 /// A planar convex polygon seen from a point `x`: the directions through it, sampled uniformly by
 /// solid angle (or by area when it subtends less than [`SMALL_SOLID_ANGLE`]).
+///
+/// Sampling picks a triangle of a fan by solid angle, then samples it with
+/// [`sample_spherical_triangle`]. The fan's apex is the polygon's point nearest `x` rather than a
+/// vertex, so that no fan triangle joins nearly opposite directions when `x` is close to a large
+/// polygon.
 ///
 /// Built once per shading point, so everything is stored inline.
 #[derive(Clone, Debug)]
@@ -213,10 +220,11 @@ impl SphericalPolygon {
             offsets.reverse();
         }
         let height = away.dot(mean_offset);
-        if !(height > PLANE_TOLERANCE * scale) {
+        if height.is_nan() || height <= PLANE_TOLERANCE * scale {
             return None;
         }
-        let unit: ArrayVec<DVec3, MAX_CLIP_VERTICES> = offsets.iter().map(|r| r.normalize()).collect();
+        let unit: ArrayVec<DVec3, MAX_CLIP_VERTICES> =
+            offsets.iter().map(|r| r.normalize()).collect();
         let edge_normals: Verts = (0..n)
             .map(|i| {
                 let (r, r_next) = (offsets[i], offsets[(i + 1) % n]);
@@ -336,10 +344,13 @@ impl SphericalPolygon {
             i -= 1;
         }
         let width = cdf[i] - lower(i);
-        if !(width > 0.0) {
+        if width.is_nan() || width <= 0.0 {
             return None;
         }
-        Some((i, ((target - lower(i)) / width).clamp(0.0, ONE_MINUS_EPSILON)))
+        Some((
+            i,
+            ((target - lower(i)) / width).clamp(0.0, ONE_MINUS_EPSILON),
+        ))
     }
 }
 
@@ -366,12 +377,19 @@ mod tests {
     fn solid_angle_ignores_vertex_order() {
         let mut rng = Rng::new(7, 0);
         for _ in 0..100 {
-            let (a, b, c) = (random_unit(&mut rng), random_unit(&mut rng), random_unit(&mut rng));
+            let (a, b, c) = (
+                random_unit(&mut rng),
+                random_unit(&mut rng),
+                random_unit(&mut rng),
+            );
             let omega = spherical_triangle_solid_angle(a, b, c);
             assert!(omega >= 0.0);
             for (p, q, r) in [(b, c, a), (c, a, b), (a, c, b), (c, b, a), (b, a, c)] {
                 let other = spherical_triangle_solid_angle(p, q, r);
-                assert!((other - omega).abs() <= 1e-5 * omega.max(1.0), "{omega} {other}");
+                assert!(
+                    (other - omega).abs() <= 1e-5 * omega.max(1.0),
+                    "{omega} {other}"
+                );
             }
         }
     }
@@ -387,7 +405,10 @@ mod tests {
             let c = Vec3::new(0.0, e as f32, 1.0).normalize();
             let omega = spherical_triangle_solid_angle(a, b, c) as f64;
             // Rounding the vertices to f32 (~6e-8 rad) bounds the attainable accuracy.
-            assert!(((omega - exact) / exact).abs() < 2e-7 / e, "e = {e}: {omega} vs {exact}");
+            assert!(
+                ((omega - exact) / exact).abs() < 2e-7 / e,
+                "e = {e}: {omega} vs {exact}"
+            );
         }
     }
 
@@ -395,7 +416,11 @@ mod tests {
     fn samples_stay_inside_and_invert() {
         let mut rng = Rng::new(11, 0);
         for _ in 0..200 {
-            let (a, b, c) = (random_unit(&mut rng), random_unit(&mut rng), random_unit(&mut rng));
+            let (a, b, c) = (
+                random_unit(&mut rng),
+                random_unit(&mut rng),
+                random_unit(&mut rng),
+            );
             if spherical_triangle_solid_angle(a, b, c) < 1e-3 {
                 continue;
             }
@@ -420,7 +445,10 @@ mod tests {
         let inside = Vec3::ONE.normalize();
         assert!((spherical_triangle_pdf(a, b, c, inside) - 1.0 / FRAC_PI_2).abs() < 1e-6);
         assert_eq!(spherical_triangle_pdf(a, b, c, -inside), 0.0);
-        assert_eq!(spherical_triangle_pdf(a, c, b, Vec3::new(1.0, 1.0, -0.1).normalize()), 0.0);
+        assert_eq!(
+            spherical_triangle_pdf(a, c, b, Vec3::new(1.0, 1.0, -0.1).normalize()),
+            0.0
+        );
     }
 
     #[test]
