@@ -52,7 +52,10 @@ fn rays_per_second<T: Sync>(rays: &[T], budget: Duration, trace: impl Fn(&T) -> 
     let mut count = 0usize;
     let mut sink = 0.0f32;
     while start.elapsed() < budget {
-        sink += rays.par_chunks(1024).map(|c| c.iter().map(&trace).sum::<f32>()).sum::<f32>();
+        sink += rays
+            .par_chunks(1024)
+            .map(|c| c.iter().map(&trace).sum::<f32>())
+            .sum::<f32>();
         count += rays.len();
     }
     // Keep the traversal from being optimised away.
@@ -70,7 +73,9 @@ pub fn run(args: &BenchArgs) -> Result<()> {
         args.seconds
     );
     println!();
-    println!("| scene | triangles | raw closest-hit Mrays/s | raw occlusion Mrays/s | raw mix Mrays/s | renderer (light) Mrays/s | renderer / raw mix |");
+    println!(
+        "| scene | triangles | raw closest-hit Mrays/s | raw occlusion Mrays/s | raw mix Mrays/s | renderer (light) Mrays/s | renderer / raw mix |"
+    );
     println!("|---|---|---|---|---|---|---|");
     for name in builtin::NAMES {
         let scene = Scene::open(name)?;
@@ -92,7 +97,8 @@ pub fn run(args: &BenchArgs) -> Result<()> {
         );
         let (_, stats, elapsed) = render_for(&integrator, args.size, args.size, budget);
         let renderer = stats.rays() as f64 / elapsed.as_secs_f64();
-        let closest_share = (stats.camera_rays + stats.bounce_rays) as f64 / stats.rays().max(1) as f64;
+        let closest_share =
+            (stats.camera_rays + stats.bounce_rays) as f64 / stats.rays().max(1) as f64;
         let raw_mix = 1.0 / (closest_share / closest + (1.0 - closest_share) / occlusion);
         println!(
             "| {name} | {} | {:.2} | {:.2} | {:.2} | {:.2} | {:.0}% |",

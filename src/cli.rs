@@ -14,7 +14,11 @@ use crate::render::{film::Film, render_pass, tonemap};
 use crate::scene::{Scene, builtin, gltf_io};
 
 #[derive(Parser, Debug)]
-#[command(name = "portalview", version, about = "Light portals for area lights: a viewer and a renderer")]
+#[command(
+    name = "portalview",
+    version,
+    about = "Light portals for area lights: a viewer and a renderer"
+)]
 pub struct Cli {
     #[command(subcommand)]
     pub command: Option<Command>,
@@ -38,6 +42,8 @@ pub enum Command {
     },
     /// Measure raw BVH traversal and renderer throughput on the built-in scenes.
     Bench(BenchArgs),
+    /// Render strategies for equal time and measure their error against a converged reference.
+    Compare(CompareArgs),
 }
 
 #[derive(Args, Debug, Clone)]
@@ -85,12 +91,63 @@ pub struct BenchArgs {
     pub size: u32,
 }
 
+/// `portalview compare`: every strategy gets the same pass render time; MSE against a reference
+/// is recorded as they converge. Writes convergence.csv, convergence.svg and summary.md into
+/// --out (with --figure8: one subfolder per scene, plus figure8.csv, figure8.md, figure8.svg).
+#[derive(Args, Debug, Clone)]
+pub struct CompareArgs {
+    /// Built-in name (lampshade, fig8a, fig8b, fig8c) or a .gltf/.glb path.
+    #[arg(long, required_unless_present = "figure8", conflicts_with = "figure8")]
+    pub scene: Option<String>,
+    /// Compare on fig8a, fig8b and fig8c (the thesis's Figure 8).
+    #[arg(long)]
+    pub figure8: bool,
+    /// Strategies to compare, comma-separated.
+    #[arg(long, value_enum, value_delimiter = ',', default_values_t = Strategy::ALL)]
+    pub strategies: Vec<Strategy>,
+    /// Pass render time per strategy, in seconds (the whole run takes this times the number
+    /// of strategies, plus the reference).
+    #[arg(long)]
+    pub seconds: f64,
+    /// Output folder.
+    #[arg(long)]
+    pub out: PathBuf,
+    #[arg(long, default_value_t = 256)]
+    pub width: u32,
+    /// Image height (default: from the width and the camera's aspect ratio).
+    #[arg(long)]
+    pub height: Option<u32>,
+    /// Seed of the compared renders (the reference uses another, derived from it).
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Path vertices after the camera (1 = direct light only, as in the thesis).
+    #[arg(long, default_value_t = 1)]
+    pub max_depth: u32,
+    /// A reference image (.exr of the same size) instead of rendering one; a .json sidecar
+    /// beside it, as the cache writes, tells its convergence.
+    #[arg(long, conflicts_with_all = ["figure8", "reference_seconds", "reference_spp"])]
+    pub reference: Option<PathBuf>,
+    /// Render time of the reference, with antishadow sampling [default: 10 × --seconds, so
+    /// that its noise floor is about a tenth of the best strategy's MSE].
+    #[arg(long, conflicts_with = "reference_spp")]
+    pub reference_seconds: Option<f64>,
+    /// Samples per pixel of the reference, instead of a time.
+    #[arg(long)]
+    pub reference_spp: Option<u32>,
+    /// Where references are cached, by a hash of the scene, camera, size and depth [default:
+    /// $XDG_CACHE_HOME/portalview or ~/.cache/portalview]. A cached reference is reused when
+    /// it had at least the requested time or spp.
+    #[arg(long)]
+    pub cache_dir: Option<PathBuf>,
+}
+
 pub fn run(command: Command) -> Result<()> {
     match command {
         Command::View { scene } => crate::app::run_viewer(scene),
         Command::Render(args) => render(&args),
         Command::Export { scene, out } => export(&scene, &out),
         Command::Bench(args) => crate::bench::run(&args),
+        Command::Compare(args) => crate::compare::run(&args),
     }
 }
 
@@ -134,8 +191,16 @@ fn bar(len: u64, template: &str) -> ProgressBar {
 }
 
 /// Renders `spp` passes with a progress bar.
-pub fn render_spp(integrator: &Integrator, width: u32, height: u32, spp: u32) -> (Film, Stats, Duration) {
-    let progress = bar(spp as u64, "{bar:40} {pos}/{len} spp  {elapsed_precise}  eta {eta}");
+pub fn render_spp(
+    integrator: &Integrator,
+    width: u32,
+    height: u32,
+    spp: u32,
+) -> (Film, Stats, Duration) {
+    let progress = bar(
+        spp as u64,
+        "{bar:40} {pos}/{len} spp  {elapsed_precise}  eta {eta}",
+    );
     let mut film = Film::new(width, height);
     let mut stats = Stats::default();
     let never = AtomicBool::new(false);
@@ -152,8 +217,16 @@ pub fn render_spp(integrator: &Integrator, width: u32, height: u32, spp: u32) ->
 }
 
 /// Renders whole passes until `budget` is spent (at least one), with a progress bar.
-pub fn render_for(integrator: &Integrator, width: u32, height: u32, budget: Duration) -> (Film, Stats, Duration) {
-    let progress = bar(budget.as_millis() as u64, "{bar:40} {msg}  {elapsed_precise}");
+pub fn render_for(
+    integrator: &Integrator,
+    width: u32,
+    height: u32,
+    budget: Duration,
+) -> (Film, Stats, Duration) {
+    let progress = bar(
+        budget.as_millis() as u64,
+        "{bar:40} {msg}  {elapsed_precise}",
+    );
     let mut film = Film::new(width, height);
     let mut stats = Stats::default();
     let never = AtomicBool::new(false);
@@ -187,8 +260,11 @@ fn print_summary(film: &Film, stats: &Stats, elapsed: Duration) {
         .iter()
         .map(|&r| format!("{} {:.1}%", r.name(), 100.0 * stats.region_share(r)))
         .collect();
-    println!("shading points: {}; no portal {:.1}%", regions.join(", "),
-        100.0 * stats.no_portal as f64 / stats.shading_points().max(1) as f64);
+    println!(
+        "shading points: {}; no portal {:.1}%",
+        regions.join(", "),
+        100.0 * stats.no_portal as f64 / stats.shading_points().max(1) as f64
+    );
     let techniques: Vec<String> = crate::light::Technique::ALL
         .iter()
         .zip(stats.techniques)
@@ -204,7 +280,10 @@ fn print_summary(film: &Film, stats: &Stats, elapsed: Duration) {
 
 fn export(name: &str, out: &std::path::Path) -> Result<()> {
     let desc = builtin::desc(name).with_context(|| {
-        format!("unknown built-in scene '{name}' (built-ins: {})", builtin::NAMES.join(", "))
+        format!(
+            "unknown built-in scene '{name}' (built-ins: {})",
+            builtin::NAMES.join(", ")
+        )
     })?;
     // Validate before writing, so an export always loads back.
     Scene::from_desc(desc.clone(), name)?;

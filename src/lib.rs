@@ -8,8 +8,9 @@
 pub mod app;
 pub mod bench;
 pub mod cli;
+pub mod compare;
 pub mod light;
 pub mod material;
-pub mod sampling;
 pub mod render;
+pub mod sampling;
 pub mod scene;

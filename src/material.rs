@@ -107,7 +107,8 @@ impl Material {
         }
         let p_spec = self.specular_probability(wo.z);
         let h = (wo + wi).normalize();
-        (1.0 - p_spec) * cosine_hemisphere_pdf(wi.z) + p_spec * vndf_reflection_pdf(wo, h, self.alpha)
+        (1.0 - p_spec) * cosine_hemisphere_pdf(wi.z)
+            + p_spec * vndf_reflection_pdf(wo, h, self.alpha)
     }
 
     /// Draws `wi`: the lobe by `u_lobe`, then the direction by `u`.

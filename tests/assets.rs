@@ -11,12 +11,20 @@ fn close(a: Vec3, b: Vec3) -> bool {
 }
 
 fn assert_same(name: &str, file: &SceneDesc, code: &SceneDesc) {
-    assert_eq!(file.materials.len(), code.materials.len(), "{name}: materials");
+    assert_eq!(
+        file.materials.len(),
+        code.materials.len(),
+        "{name}: materials"
+    );
     for (a, b) in file.materials.iter().zip(&code.materials) {
         assert_eq!(a.name, b.name);
         assert!(close(a.base_color, b.base_color), "{name}: {}", a.name);
         assert!((a.metallic - b.metallic).abs() < 1e-6 && (a.roughness - b.roughness).abs() < 1e-6);
-        assert!(close(a.radiance(), b.radiance()), "{name}: {} emission", a.name);
+        assert!(
+            close(a.radiance(), b.radiance()),
+            "{name}: {} emission",
+            a.name
+        );
         assert_eq!(a.double_sided, b.double_sided);
     }
     assert_eq!(file.meshes.len(), code.meshes.len(), "{name}: meshes");
@@ -24,7 +32,12 @@ fn assert_same(name: &str, file: &SceneDesc, code: &SceneDesc) {
         assert_eq!(a.node_name, b.node_name);
         assert_eq!(a.material, b.material);
         assert_eq!(a.indices, b.indices, "{name}: {}", a.node_name);
-        assert!(a.positions.iter().zip(&b.positions).all(|(p, q)| close(*p, *q)));
+        assert!(
+            a.positions
+                .iter()
+                .zip(&b.positions)
+                .all(|(p, q)| close(*p, *q))
+        );
         assert!(a.normals.iter().zip(&b.normals).all(|(p, q)| close(*p, *q)));
     }
     assert_eq!(file.portals.len(), code.portals.len(), "{name}: portals");
@@ -32,10 +45,18 @@ fn assert_same(name: &str, file: &SceneDesc, code: &SceneDesc) {
         assert_eq!((&a.name, &a.target, a.alpha), (&b.name, &b.target, b.alpha));
         let (ta, tb) = (a.world_triangles(), b.world_triangles());
         assert_eq!(ta.len(), tb.len());
-        assert!(ta.iter().flatten().zip(tb.iter().flatten()).all(|(p, q)| close(*p, *q)));
+        assert!(
+            ta.iter()
+                .flatten()
+                .zip(tb.iter().flatten())
+                .all(|(p, q)| close(*p, *q))
+        );
     }
     let (ca, cb) = (file.camera.unwrap(), code.camera.unwrap());
-    assert!(close(ca.eye, cb.eye) && close(ca.target, cb.target), "{name}: camera");
+    assert!(
+        close(ca.eye, cb.eye) && close(ca.target, cb.target),
+        "{name}: camera"
+    );
     assert!((ca.yfov - cb.yfov).abs() < 1e-6 && (ca.aspect - cb.aspect).abs() < 1e-6);
 }
 

@@ -57,7 +57,11 @@ fn bvh_matches_brute_force_on_random_rays() {
     let mut tris: Vec<[Vec3; 3]> = (0..600)
         .map(|_| {
             let c = random_point(&mut rng, 5.0);
-            [c, c + random_point(&mut rng, 0.8), c + random_point(&mut rng, 0.8)]
+            [
+                c,
+                c + random_point(&mut rng, 0.8),
+                c + random_point(&mut rng, 0.8),
+            ]
         })
         .collect();
     // Degenerate triangles: a point, a line, and a sliver must never be hit or crash.
@@ -108,7 +112,11 @@ fn bvh_matches_brute_force_on_random_rays() {
 #[test]
 fn bvh_handles_empty_scenes_and_rays_along_edges() {
     let empty = Bvh::build(&[]);
-    assert!(empty.closest_hit(Vec3::ZERO, Vec3::X, 0.0, f32::INFINITY).is_none());
+    assert!(
+        empty
+            .closest_hit(Vec3::ZERO, Vec3::X, 0.0, f32::INFINITY)
+            .is_none()
+    );
     assert!(!empty.occluded(Vec3::ZERO, Vec3::X, 0.0, 1.0));
     // A quad split along its diagonal: a ray straight down the diagonal must hit exactly once,
     // and a ray lying in the quad's plane along an edge must not report a bogus hit distance.
@@ -135,7 +143,9 @@ fn floor_radiance(scene: &Scene, strategy: Strategy, x: Vec3, n: usize, seed: u6
     let values: Vec<f64> = (0..n)
         .map(|i| {
             let mut rng = Rng::keyed(seed, &[i as u64]);
-            integrator.radiance(eye, (x - eye).normalize(), &mut rng, &mut stats).x as f64
+            integrator
+                .radiance(eye, (x - eye).normalize(), &mut rng, &mut stats)
+                .x as f64
         })
         .collect();
     mean_and_se(&values)
@@ -166,7 +176,10 @@ fn diffuse_plane_matches_lambert_irradiance() {
         );
         // Negative case: a 3% error in the expected value is caught by the same test.
         if i == 0 {
-            assert!((mean - 1.03 * expected).abs() > 4.0 * se, "test cannot detect a 3% bias");
+            assert!(
+                (mean - 1.03 * expected).abs() > 4.0 * se,
+                "test cannot detect a 3% bias"
+            );
         }
     }
 }
@@ -184,14 +197,20 @@ fn same_image_with_one_and_two_threads() {
         ..RenderSettings::default()
     };
     let render_with = |threads: usize| {
-        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
         pool.install(|| render(&Integrator::new(&scene, settings), 48, 36, 3))
     };
     let (one, stats_one) = render_with(1);
     let (two, stats_two) = render_with(2);
     assert_eq!(one.mean(), two.mean());
     assert_eq!(stats_one.shadow_rays, stats_two.shadow_rays);
-    assert!(one.mean().iter().any(|c| c.max_element() > 0.0), "image is black");
+    assert!(
+        one.mean().iter().any(|c| c.max_element() > 0.0),
+        "image is black"
+    );
 }
 
 /// A UV sphere's triangles (outward winding unless `inward`).
@@ -202,18 +221,30 @@ fn sphere(center: Vec3, r: f32, inward: bool) -> Vec<Vec<Vec3>> {
             std::f32::consts::TAU * i as f32 / nu as f32,
             std::f32::consts::PI * j as f32 / nv as f32,
         );
-        center + r * Vec3::new(theta.sin() * phi.cos(), theta.cos(), theta.sin() * phi.sin())
+        center
+            + r * Vec3::new(
+                theta.sin() * phi.cos(),
+                theta.cos(),
+                theta.sin() * phi.sin(),
+            )
     };
     let mut tris = vec![];
     for i in 0..nu {
         for j in 0..nv {
             let (a, b, c, d) = (p(i, j), p(i + 1, j), p(i + 1, j + 1), p(i, j + 1));
             for t in [vec![a, b, c], vec![a, c, d]] {
-                if t[0].distance(t[1]) < 1e-6 || t[1].distance(t[2]) < 1e-6 || t[0].distance(t[2]) < 1e-6 {
+                if t[0].distance(t[1]) < 1e-6
+                    || t[1].distance(t[2]) < 1e-6
+                    || t[0].distance(t[2]) < 1e-6
+                {
                     continue;
                 }
                 // [a, b, c] winds outward.
-                tris.push(if inward { t.into_iter().rev().collect() } else { t });
+                tris.push(if inward {
+                    t.into_iter().rev().collect()
+                } else {
+                    t
+                });
             }
         }
     }
@@ -241,14 +272,23 @@ fn white_lambertian_furnace_returns_one() {
     let mut geometry = std::sync::Arc::try_unwrap(scene.geometry).ok().unwrap();
     geometry.materials[1].specular = 0.0;
     scene.geometry = std::sync::Arc::new(geometry);
-    let integrator = Integrator::new(&scene, RenderSettings { seed: 3, ..Default::default() });
+    let integrator = Integrator::new(
+        &scene,
+        RenderSettings {
+            seed: 3,
+            ..Default::default()
+        },
+    );
     let (film, _) = render(&integrator, 32, 32, 64);
     let mean = film.mean();
     let var = film.variance_of_mean();
     let n = mean.len() as f64;
     let image_mean = mean.iter().map(|c| c.x as f64).sum::<f64>() / n;
     let image_se = (var.iter().map(|v| v.x as f64).sum::<f64>()).sqrt() / n;
-    assert!((image_mean - 1.0).abs() <= 4.0 * image_se + 1e-4, "{image_mean} ± {image_se}");
+    assert!(
+        (image_mean - 1.0).abs() <= 4.0 * image_se + 1e-4,
+        "{image_mean} ± {image_se}"
+    );
 }
 
 /// No BSDF reflects more than it receives: the albedo `∫ f cos dωi`, estimated by BSDF
@@ -272,7 +312,10 @@ fn no_bsdf_creates_energy() {
                     })
                     .collect();
                 let (albedo, se) = mean_and_se(&values);
-                assert!(albedo <= 1.0 + 4.0 * se, "m={metallic} r={roughness}: {albedo} ± {se}");
+                assert!(
+                    albedo <= 1.0 + 4.0 * se,
+                    "m={metallic} r={roughness}: {albedo} ± {se}"
+                );
             }
         }
     }

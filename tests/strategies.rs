@@ -10,8 +10,8 @@ use glam::{Vec2, Vec3};
 use portalview::light::antishadow::{Region, classify_brute_force};
 use portalview::light::estimator::{LightContext, LightSampler, portal_pdf, term_pdf};
 use portalview::light::{Strategy, Technique};
-use portalview::render::integrator::{Integrator, RenderSettings};
 use portalview::render::film::Film;
+use portalview::render::integrator::{Integrator, RenderSettings};
 use portalview::render::render;
 use portalview::sampling::{Frame, Rng};
 use portalview::scene::{Scene, builtin};
@@ -27,9 +27,15 @@ impl Cone {
     fn around(x: Vec3, points: &[Vec3]) -> Cone {
         let dirs: Vec<Vec3> = points.iter().map(|p| (*p - x).normalize()).collect();
         let axis = dirs.iter().copied().sum::<Vec3>().normalize();
-        let half = dirs.iter().map(|d| d.dot(axis).clamp(-1.0, 1.0).acos()).fold(0.0, f32::max);
+        let half = dirs
+            .iter()
+            .map(|d| d.dot(axis).clamp(-1.0, 1.0).acos())
+            .fold(0.0, f32::max);
         let half = (half * 1.05 + 1e-3).min(std::f32::consts::FRAC_PI_2 * 0.99);
-        Cone { frame: Frame::from_normal(axis), cos_max: half.cos() }
+        Cone {
+            frame: Frame::from_normal(axis),
+            cos_max: half.cos(),
+        }
     }
     fn solid_angle(&self) -> f64 {
         std::f64::consts::TAU * (1.0 - self.cos_max as f64)
@@ -39,7 +45,8 @@ impl Cone {
         let cos = 1.0 - u.x * (1.0 - self.cos_max);
         let sin = (1.0 - cos * cos).max(0.0).sqrt();
         let phi = std::f32::consts::TAU * u.y;
-        self.frame.to_world(Vec3::new(sin * phi.cos(), sin * phi.sin(), cos))
+        self.frame
+            .to_world(Vec3::new(sin * phi.cos(), sin * phi.sin(), cos))
     }
     /// The equal-solid-angle cell (of `n × n`) a direction falls in, if inside the cone.
     fn cell(&self, w: Vec3, n: usize) -> Option<usize> {
@@ -105,7 +112,12 @@ fn cases() -> Vec<(String, Scene, Region, Vec3)> {
         }
     }
     let regions: Vec<Region> = cases.iter().map(|c| c.2).collect();
-    for r in [Region::Outside, Region::Antiumbra, Region::Antipenumbra, Region::Antiantumbra] {
+    for r in [
+        Region::Outside,
+        Region::Antiumbra,
+        Region::Antipenumbra,
+        Region::Antiantumbra,
+    ] {
         assert!(regions.contains(&r), "no test point in {}", r.name());
     }
     cases
@@ -130,7 +142,11 @@ fn mixture_pdf_integrates_to_covered_fraction() {
                 })
                 .collect();
             let (integral, se) = common::mean_and_se(&values);
-            let expected = if ctx.uses_portals && ctx.terms.is_empty() { ctx.alpha as f64 } else { 1.0 };
+            let expected = if ctx.uses_portals && ctx.terms.is_empty() {
+                ctx.alpha as f64
+            } else {
+                1.0
+            };
             // Stratification makes the plain standard error conservative.
             assert!(
                 (integral - expected).abs() <= 4.0 * se + 2e-3,
@@ -196,7 +212,10 @@ fn chi_square_critical(dof: usize) -> f64 {
 /// a mixture can hold most of its mass in a small portal), cells expecting fewer than 5
 /// pooled. Returns (statistic, critical value at 1e-3).
 fn chi_square(cone: &Cone, samples: &[Vec3], pdf: impl Fn(Vec3) -> f32) -> (f64, f64) {
-    let outside = samples.iter().filter(|&&w| cone.cell(w, 8).is_none()).count();
+    let outside = samples
+        .iter()
+        .filter(|&&w| cone.cell(w, 8).is_none())
+        .count();
     assert!(outside == 0, "{outside} samples outside the cone");
     let n = 8;
     let m = 96; // quadrature points per cell side
@@ -223,7 +242,6 @@ fn chi_square(cone: &Cone, samples: &[Vec3], pdf: impl Fn(Vec3) -> f32) -> (f64,
         }
     }
     let count = samples.len() as f64;
-
 
     let (mut stat, mut cells, mut pooled_o, mut pooled_e) = (0.0, 0usize, 0.0, 0.0);
     for (o, e) in observed.iter().zip(&mass) {
@@ -288,7 +306,10 @@ fn chi_square_rejects_samples_from_another_pdf() {
         .map(|s| s.wi)
         .collect();
     let (stat, critical) = chi_square(&cone, &samples, |w| q(&portal, &scene, &ctx_portal, w));
-    assert!(stat > critical, "chi-square {stat:.1} did not reject (critical {critical:.1})");
+    assert!(
+        stat > critical,
+        "chi-square {stat:.1} did not reject (critical {critical:.1})"
+    );
 }
 
 /// Portal sampling's pdf is zero off the portal and positive through it.
@@ -309,7 +330,12 @@ fn portal_pdf_support() {
 /// hits), so they are left out.
 fn block_z_scores(a: &Film, b: &Film, block: u32) -> Vec<f64> {
     let lum = |c: Vec3| (c.x + c.y + c.z) as f64 / 3.0;
-    let (ma, va, mb, vb) = (a.mean(), a.variance_of_mean(), b.mean(), b.variance_of_mean());
+    let (ma, va, mb, vb) = (
+        a.mean(),
+        a.variance_of_mean(),
+        b.mean(),
+        b.variance_of_mean(),
+    );
     let mut blocks = vec![];
     for by in 0..a.height / block {
         for bx in 0..a.width / block {
@@ -344,7 +370,12 @@ fn consistent(z: &[f64]) -> bool {
 fn render_image(scene: &Scene, strategy: Strategy, alpha: Option<f32>, seed: u64) -> Film {
     let integrator = Integrator::new(
         scene,
-        RenderSettings { strategy, alpha, max_depth: 1, seed },
+        RenderSettings {
+            strategy,
+            alpha,
+            max_depth: 1,
+            seed,
+        },
     );
     render(&integrator, 48, 36, 96).0
 }
@@ -356,7 +387,10 @@ fn every_strategy_agrees_with_light_sampling() {
     for name in builtin::NAMES {
         let scene = Scene::open(name).unwrap();
         let reference = render_image(&scene, Strategy::Light, None, 100);
-        for (k, strategy) in [Strategy::Portal, Strategy::Projection, Strategy::Antishadow].into_iter().enumerate() {
+        for (k, strategy) in [Strategy::Portal, Strategy::Projection, Strategy::Antishadow]
+            .into_iter()
+            .enumerate()
+        {
             let image = render_image(&scene, strategy, None, 200 + k as u64);
             let z = block_z_scores(&image, &reference, 6);
             assert!(z.len() > 10, "{name}: too few lit blocks");
@@ -375,14 +409,20 @@ fn misplaced_portal_is_unbiased_only_with_alpha() {
     portals[0].world_from_local = glam::Mat4::from_translation(Vec3::new(0.2, 0.0, 0.0));
     let moved = scene.with_portals(portals).unwrap();
     let reference = render_image(&moved, Strategy::Light, None, 100);
-    for (k, strategy) in [Strategy::Portal, Strategy::Projection, Strategy::Antishadow].into_iter().enumerate() {
+    for (k, strategy) in [Strategy::Portal, Strategy::Projection, Strategy::Antishadow]
+        .into_iter()
+        .enumerate()
+    {
         let image = render_image(&moved, strategy, Some(0.3), 300 + k as u64);
         let z = block_z_scores(&image, &reference, 6);
         assert!(consistent(&z), "misplaced, {}: z = {z:?}", strategy.name());
     }
     let biased = render_image(&moved, Strategy::Portal, Some(0.0), 400);
     let z = block_z_scores(&biased, &reference, 6);
-    assert!(!consistent(&z), "alpha = 0 on a misplaced portal went undetected");
+    assert!(
+        !consistent(&z),
+        "alpha = 0 on a misplaced portal went undetected"
+    );
 }
 
 /// The plane classifier agrees with brute force for every portal of the built-in scenes, at
@@ -406,7 +446,10 @@ fn classifier_matches_brute_force_on_builtin_scenes() {
                 assert_eq!(fast, slow, "{name} {} at {x}", portal.name);
                 counts[Region::ALL.iter().position(|&r| r == fast).unwrap()] += 1;
             }
-            assert!(counts.iter().filter(|&&c| c > 0).count() >= 3, "{name}: {counts:?}");
+            assert!(
+                counts.iter().filter(|&&c| c > 0).count() >= 3,
+                "{name}: {counts:?}"
+            );
         }
     }
 }

@@ -113,7 +113,10 @@ impl LightSampler {
         let alpha_of = portals_of
             .iter()
             .map(|ps| {
-                let authored = ps.iter().map(|&i| scene.portals[i].alpha).fold(0.0, f32::max);
+                let authored = ps
+                    .iter()
+                    .map(|&i| scene.portals[i].alpha)
+                    .fold(0.0, f32::max);
                 alpha_override.unwrap_or(authored).clamp(0.0, 1.0)
             })
             .collect();
@@ -194,7 +197,11 @@ impl LightSampler {
         for term in ctx.terms.iter_mut() {
             term.weight /= total;
         }
-        if let Some(best) = ctx.terms.iter().max_by(|a, b| a.weight.total_cmp(&b.weight)) {
+        if let Some(best) = ctx
+            .terms
+            .iter()
+            .max_by(|a, b| a.weight.total_cmp(&b.weight))
+        {
             ctx.region = best.region;
         }
     }
@@ -217,34 +224,40 @@ impl LightSampler {
             let v = y.p - x;
             let dist = v.length();
             let wi = v / dist;
-            (dist > 0.0).then(|| (wi, Some((y, dist)), light.pdf_solid_angle(dist, y.n.dot(wi))))
+            (dist > 0.0).then(|| {
+                (
+                    wi,
+                    Some((y, dist)),
+                    light.pdf_solid_angle(dist, y.n.dot(wi)),
+                )
+            })
         };
-        let (technique, (wi, hit, technique_pdf)) =
-            if !ctx.uses_portals || u_technique < ctx.alpha {
-                (Technique::Light, from_light(light.sample_point(u)?)?)
-            } else {
-                // Rescale the remaining share to pick the portal term.
-                let mut v = (u_technique - ctx.alpha) / (1.0 - ctx.alpha);
-                let term = ctx.terms.iter().find(|t| {
-                    let hit = v < t.weight;
-                    v -= t.weight;
-                    hit
-                });
-                let term = term.or(ctx.terms.last())?;
-                let portal = &scene.portals[term.portal];
-                let sampled = match term.technique {
-                    Technique::Light => from_light(light.sample_point(u)?)?,
-                    Technique::Portal => {
-                        let (wi, pdf) = sample_portal(portal, x, u)?;
-                        (wi, self.light_hit(scene, ctx.light, x, wi), pdf)
-                    }
-                    Technique::Projection => {
-                        let (wi, pdf) = term.projection.as_ref()?.sample(u)?;
-                        (wi, self.light_hit(scene, ctx.light, x, wi), pdf)
-                    }
-                };
-                (term.technique, sampled)
+        let (technique, (wi, hit, technique_pdf)) = if !ctx.uses_portals || u_technique < ctx.alpha
+        {
+            (Technique::Light, from_light(light.sample_point(u)?)?)
+        } else {
+            // Rescale the remaining share to pick the portal term.
+            let mut v = (u_technique - ctx.alpha) / (1.0 - ctx.alpha);
+            let term = ctx.terms.iter().find(|t| {
+                let hit = v < t.weight;
+                v -= t.weight;
+                hit
+            });
+            let term = term.or(ctx.terms.last())?;
+            let portal = &scene.portals[term.portal];
+            let sampled = match term.technique {
+                Technique::Light => from_light(light.sample_point(u)?)?,
+                Technique::Portal => {
+                    let (wi, pdf) = sample_portal(portal, x, u)?;
+                    (wi, self.light_hit(scene, ctx.light, x, wi), pdf)
+                }
+                Technique::Projection => {
+                    let (wi, pdf) = term.projection.as_ref()?.sample(u)?;
+                    (wi, self.light_hit(scene, ctx.light, x, wi), pdf)
+                }
             };
+            (term.technique, sampled)
+        };
         let le = hit.map_or(Vec3::ZERO, |(y, _)| light.emitted(y.n, -wi));
         Some(LightSample {
             wi,
@@ -297,7 +310,13 @@ impl LightSampler {
     }
 
     /// The light technique's pdf `p_L(wi)` for a direction whose light hit is `hit`.
-    pub fn light_pdf(&self, scene: &Scene, light: usize, wi: Vec3, hit: Option<(LightPoint, f32)>) -> f32 {
+    pub fn light_pdf(
+        &self,
+        scene: &Scene,
+        light: usize,
+        wi: Vec3,
+        hit: Option<(LightPoint, f32)>,
+    ) -> f32 {
         let light = &scene.geometry.lights[light];
         hit.map_or(0.0, |(y, d)| light.pdf_solid_angle(d, y.n.dot(wi)))
     }

@@ -35,6 +35,8 @@ pub enum PortalError {
 #[derive(Clone, Debug)]
 pub struct Portal {
     pub name: String,
+    /// Index of the `PortalDesc` it was built from in the scene's description.
+    pub desc_index: usize,
     /// Index of its light in the scene's lights.
     pub light: usize,
     /// Probability of sampling the light itself instead of the portal.
@@ -47,7 +49,12 @@ pub struct Portal {
 }
 
 impl Portal {
-    pub fn new(desc: &PortalDesc, lights: &[AreaLight]) -> Result<Portal, PortalError> {
+    /// Validates `desc`, the `desc_index`-th portal of its scene.
+    pub fn new(
+        desc: &PortalDesc,
+        desc_index: usize,
+        lights: &[AreaLight],
+    ) -> Result<Portal, PortalError> {
         let portal = desc.name.clone();
         let target = desc.target.clone();
         if !(0.0..=1.0).contains(&desc.alpha) {
@@ -70,9 +77,9 @@ impl Portal {
         })?;
         let (polygon, light_polygon) = orient(polygon, light_polygon, lights[light].double_sided)
             .ok_or_else(|| PortalError::Coplanar {
-                portal: portal.clone(),
-                target: target.clone(),
-            })?;
+            portal: portal.clone(),
+            target: target.clone(),
+        })?;
         let planes = AntishadowPlanes::new(&polygon, &light_polygon).map_err(|error| {
             PortalError::Geometry {
                 portal: portal.clone(),
@@ -82,6 +89,7 @@ impl Portal {
         })?;
         Ok(Portal {
             name: portal,
+            desc_index,
             light,
             alpha: desc.alpha,
             polygon,
@@ -105,7 +113,11 @@ fn orient(
     if light_side.abs() <= eps {
         return None;
     }
-    let portal = if light_side > 0.0 { portal.flipped() } else { portal };
+    let portal = if light_side > 0.0 {
+        portal.flipped()
+    } else {
+        portal
+    };
     let portal_side = light.plane().signed_distance(portal.centroid());
     let light = if light_double_sided && portal_side < -eps {
         light.flipped()

@@ -209,7 +209,7 @@ impl<'a> Integrator<'a> {
         let Some((light, light_prob)) = self.lights.pick_light(u_pick) else {
             return false;
         };
-        let timed = stats.shading_points() % TIMING_STRIDE == 0;
+        let timed = stats.shading_points().is_multiple_of(TIMING_STRIDE);
         let start = timed.then(Instant::now);
         self.lights.fill_context(self.scene, light, s.x, ctx);
         let sample = self.lights.sample(self.scene, ctx, u_technique, u);
@@ -232,11 +232,21 @@ impl<'a> Integrator<'a> {
     }
 
     /// A light sample's contribution, weighted against BSDF sampling by the power heuristic.
-    fn direct(&self, sample: &LightSample, light_prob: f32, s: &Shading, stats: &mut Stats) -> Vec3 {
+    fn direct(
+        &self,
+        sample: &LightSample,
+        light_prob: f32,
+        s: &Shading,
+        stats: &mut Stats,
+    ) -> Vec3 {
         let Some((_, dist)) = sample.hit else {
             return Vec3::ZERO;
         };
-        if sample.le == Vec3::ZERO || !(sample.pdf > 0.0) || sample.wi.dot(s.ng) <= 0.0 {
+        if sample.le == Vec3::ZERO
+            || sample.pdf.is_nan()
+            || sample.pdf <= 0.0
+            || sample.wi.dot(s.ng) <= 0.0
+        {
             return Vec3::ZERO;
         }
         let wi_local = s.frame.to_local(sample.wi);

@@ -2,6 +2,7 @@
 
 pub mod film;
 pub mod integrator;
+pub mod primary;
 pub mod stats;
 pub mod tonemap;
 pub mod worker;

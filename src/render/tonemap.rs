@@ -27,7 +27,11 @@ pub fn false_colour(t: f32) -> [u8; 3] {
         [0.95, 0.85, 0.2],
         [0.85, 0.15, 0.1],
     ];
-    let t = if t.is_finite() { t.clamp(0.0, 1.0) } else { 0.0 } * (STOPS.len() - 1) as f32;
+    let t = if t.is_finite() {
+        t.clamp(0.0, 1.0)
+    } else {
+        0.0
+    } * (STOPS.len() - 1) as f32;
     let i = (t.floor() as usize).min(STOPS.len() - 2);
     let f = t - i as f32;
     let (a, b) = (STOPS[i], STOPS[i + 1]);

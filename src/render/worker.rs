@@ -12,6 +12,7 @@ use std::time::{Duration, Instant};
 
 use super::film::Film;
 use super::integrator::{Integrator, RenderSettings};
+use super::primary::PrimaryBuffer;
 use super::render_pass;
 use super::stats::Stats;
 use crate::scene::Scene;
@@ -41,6 +42,8 @@ pub struct Frame {
     /// Rendering time of this request so far.
     pub elapsed: Duration,
     pub stats: Stats,
+    /// Per-pixel regions and techniques at full resolution (after the preview).
+    pub primary: Option<Arc<PrimaryBuffer>>,
 }
 
 impl Frame {
@@ -60,7 +63,9 @@ struct Shared {
 }
 
 enum Message {
-    Render(Box<RenderRequest>),
+    /// A request and its generation (the handle numbers them, so that frames of coalesced
+    /// requests still carry the number the UI waits for).
+    Render(Box<RenderRequest>, u64),
     Stop,
 }
 
@@ -114,7 +119,9 @@ impl RenderHandle {
         self.generation += 1;
         self.cancel.store(true, Ordering::Relaxed);
         // A send fails only if the worker is gone; its error slot then says why.
-        let _ = self.tx.send(Message::Render(Box::new(request)));
+        let _ = self
+            .tx
+            .send(Message::Render(Box::new(request), self.generation));
         self.generation
     }
 
@@ -160,6 +167,7 @@ struct Job {
     /// Rendering time (excluding pauses and publishing).
     elapsed: Duration,
     preview_done: bool,
+    primary: Option<Arc<PrimaryBuffer>>,
     last_publish: Option<Instant>,
 }
 
@@ -169,7 +177,6 @@ const PUBLISH_INTERVAL: Duration = Duration::from_millis(100);
 impl Worker {
     fn run(self) {
         let mut job: Option<Job> = None;
-        let mut generation = 0;
         loop {
             // Idle or paused: wait for a message. Working: take any that arrived.
             let working = job.as_ref().is_some_and(|j| !j.request.paused);
@@ -184,16 +191,15 @@ impl Worker {
             };
             match message {
                 Some(Message::Stop) => return,
-                Some(Message::Render(request)) => {
+                Some(Message::Render(request, generation)) => {
                     // Only the newest request matters; skip any that queued behind it.
-                    let mut request = request;
+                    let (mut request, mut generation) = (request, generation);
                     while let Ok(next) = self.rx.try_recv() {
                         match next {
-                            Message::Render(r) => request = r,
+                            Message::Render(r, g) => (request, generation) = (r, g),
                             Message::Stop => return,
                         }
                     }
-                    generation += 1;
                     self.cancel.store(false, Ordering::Relaxed);
                     let film = Film::new(request.width.max(1), request.height.max(1));
                     job = Some(Job {
@@ -203,26 +209,33 @@ impl Worker {
                         stats: Stats::default(),
                         elapsed: Duration::ZERO,
                         preview_done: false,
+                        primary: None,
                         last_publish: None,
                     });
                     continue;
                 }
                 None => {}
             }
-            if let Some(j) = job.as_mut() {
-                if let Err(message) = self.step(j) {
-                    if let Ok(mut shared) = self.shared.lock() {
-                        shared.error = Some(message);
-                    }
-                    (self.notify)();
-                    job = None;
+            if let Some(j) = job.as_mut()
+                && let Err(message) = self.step(j)
+            {
+                if let Ok(mut shared) = self.shared.lock() {
+                    shared.error = Some(message);
                 }
+                (self.notify)();
+                job = None;
             }
         }
     }
 
     /// Renders one pass of the job (the preview first) and publishes it.
     fn step(&self, job: &mut Job) -> Result<(), String> {
+        let request = &job.request;
+        if job.preview_done && job.primary.is_none() {
+            let (scene, w, h) = (&request.scene, job.film.width, job.film.height);
+            let primary = self.pool.install(|| PrimaryBuffer::compute(scene, w, h));
+            job.primary = Some(Arc::new(primary));
+        }
         let request = &job.request;
         let integrator = Integrator::new(&request.scene, request.settings);
         let start = Instant::now();
@@ -264,6 +277,7 @@ impl Worker {
                 preview: true,
                 elapsed: pass_time,
                 stats,
+                primary: None,
             });
             return Ok(());
         }
@@ -284,6 +298,7 @@ impl Worker {
                 preview: false,
                 elapsed: job.elapsed,
                 stats: job.stats,
+                primary: job.primary.clone(),
             });
         }
         Ok(())

@@ -138,7 +138,11 @@ impl Distribution1D {
         let mut cdf = Vec::new();
         let mut total = 0.0f64;
         for w in weights {
-            total += if w.is_finite() && w > 0.0 { w as f64 } else { 0.0 };
+            total += if w.is_finite() && w > 0.0 {
+                w as f64
+            } else {
+                0.0
+            };
             cdf.push(total as f32);
         }
         Distribution1D {

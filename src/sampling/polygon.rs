@@ -31,7 +31,7 @@ impl Plane {
         let len = n.length();
         // Relative to the edge lengths, so that tiny and huge scenes behave alike.
         let scale = (b - a).length() * (c - a).length();
-        if !(len > 1e-7 * scale) {
+        if len.is_nan() || len <= 1e-7 * scale {
             return None;
         }
         Some(Plane::from_point_normal(a, n / len))
@@ -104,7 +104,8 @@ impl ConvexPolygon {
                 vertices.push(p);
             }
         }
-        while vertices.len() > 1 && vertices[0].distance(vertices[vertices.len() - 1]) <= 1e-6 * scale
+        while vertices.len() > 1
+            && vertices[0].distance(vertices[vertices.len() - 1]) <= 1e-6 * scale
         {
             vertices.pop();
         }
@@ -112,7 +113,11 @@ impl ConvexPolygon {
         let mut i = 0;
         while vertices.len() >= 3 && i < vertices.len() {
             let n = vertices.len();
-            let (a, b, c) = (vertices[(i + n - 1) % n], vertices[i], vertices[(i + 1) % n]);
+            let (a, b, c) = (
+                vertices[(i + n - 1) % n],
+                vertices[i],
+                vertices[(i + 1) % n],
+            );
             if (b - a).cross(c - b).length() <= 1e-6 * (b - a).length() * (c - b).length() {
                 vertices.remove(i);
             } else {
@@ -127,7 +132,7 @@ impl ConvexPolygon {
         }
         let newell = newell_normal(&vertices);
         let area = 0.5 * newell.length();
-        if !(area > 1e-10 * scale * scale) {
+        if area.is_nan() || area <= 1e-10 * scale * scale {
             return Err(PolygonError::ZeroArea);
         }
         let normal = newell.normalize();
@@ -175,7 +180,7 @@ impl ConvexPolygon {
             .iter()
             .map(|[a, b, c]| 0.5 * (*b - *a).cross(*c - *a).length())
             .sum();
-        if !(summed.length() > 1e-10 * scale * scale) {
+        if summed.is_nan() || summed.length() <= 1e-10 * scale * scale {
             return Err(PolygonError::ZeroArea);
         }
         let normal = summed.normalize();
@@ -308,7 +313,11 @@ pub fn sample_polygon_area(vertices: &[Vec3], u: Vec2) -> Vec3 {
     for (i, w) in triangles.enumerate() {
         let a = fan_area(w);
         if target < a || i + 1 == count {
-            let ux = if a > 0.0 { (target / a).clamp(0.0, 1.0) } else { 0.5 };
+            let ux = if a > 0.0 {
+                (target / a).clamp(0.0, 1.0)
+            } else {
+                0.5
+            };
             let b = super::sample_uniform_triangle(Vec2::new(ux, u.y));
             return b.x * v0 + b.y * w[0] + (1.0 - b.x - b.y) * w[1];
         }
@@ -356,7 +365,13 @@ pub fn clip_convex(subject: &[Vec3], clip: &ConvexPolygon) -> Verts {
         }
         // For counter-clockwise vertices, `normal × edge` points into the polygon.
         let inward = clip.normal().cross(b - a);
-        out = clip_by_plane(&out, Plane { n: inward, d: inward.dot(a) });
+        out = clip_by_plane(
+            &out,
+            Plane {
+                n: inward,
+                d: inward.dot(a),
+            },
+        );
     }
     out
 }
@@ -378,7 +393,8 @@ fn convex_hull_2d(mut points: Vec<Vec2>) -> Vec<Vec2> {
             Box::new(points.iter().rev())
         };
         for &p in iter {
-            while hull.len() >= start + 2 && cross(hull[hull.len() - 2], hull[hull.len() - 1], p) <= 0.0
+            while hull.len() >= start + 2
+                && cross(hull[hull.len() - 2], hull[hull.len() - 1], p) <= 0.0
             {
                 hull.pop();
             }
@@ -415,7 +431,10 @@ mod tests {
     fn rejects_bad_polygons() {
         let mut s = square();
         s[2].z = 0.5;
-        assert!(matches!(ConvexPolygon::new(&s), Err(PolygonError::NonPlanar(_))));
+        assert!(matches!(
+            ConvexPolygon::new(&s),
+            Err(PolygonError::NonPlanar(_))
+        ));
         let dart = [
             Vec3::ZERO,
             Vec3::new(2.0, 0.0, 0.0),
@@ -447,9 +466,15 @@ mod tests {
     #[test]
     fn clipping() {
         let p = ConvexPolygon::new(&square()).unwrap();
-        let half = clip_by_plane(p.vertices(), Plane::from_point_normal(Vec3::splat(0.5), Vec3::X));
+        let half = clip_by_plane(
+            p.vertices(),
+            Plane::from_point_normal(Vec3::splat(0.5), Vec3::X),
+        );
         assert!((polygon_area(&half) - 0.5).abs() < 1e-6);
-        let shifted: Vec<Vec3> = square().iter().map(|v| *v + Vec3::new(0.5, 0.5, 0.0)).collect();
+        let shifted: Vec<Vec3> = square()
+            .iter()
+            .map(|v| *v + Vec3::new(0.5, 0.5, 0.0))
+            .collect();
         let overlap = clip_convex(&shifted, &p);
         assert!((polygon_area(&overlap) - 0.25).abs() < 1e-6);
     }

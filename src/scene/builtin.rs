@@ -176,7 +176,11 @@ fn figure8(which: Figure8) -> SceneDesc {
         wall_z(half, y0, top, half),
     ];
     b.flat("box_walls", walls, &sides);
-    b.flat("light", light, &[rect_y(lx, 0.0, lh, lh, y0 + depth, false)]);
+    b.flat(
+        "light",
+        light,
+        &[rect_y(lx, 0.0, lh, lh, y0 + depth, false)],
+    );
     b.portal("portal", "light", &rect_y(ox, 0.0, oh, oh, y0, false));
     b.camera(Vec3::new(0.0, 1.5, 3.6), Vec3::new(0.0, 0.7, 0.0), 40.0);
     b.desc
@@ -315,7 +319,11 @@ fn lampshade() -> SceneDesc {
         ..MaterialDesc::diffuse("brass", Vec3::new(0.9, 0.7, 0.35))
     });
     let fabric = b.material(MaterialDesc::diffuse("shade", Vec3::new(0.85, 0.75, 0.55)));
-    let bulb = b.material(MaterialDesc::emitter("bulb", Vec3::new(100.0, 90.0, 75.0), true));
+    let bulb = b.material(MaterialDesc::emitter(
+        "bulb",
+        Vec3::new(100.0, 90.0, 75.0),
+        true,
+    ));
 
     // The room, faces pointing inwards.
     let (w, h) = (3.0, 2.6);

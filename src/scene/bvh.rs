@@ -157,9 +157,11 @@ impl Bvh {
             return f32::INFINITY;
         };
         let mut hit = RayHit::none();
-        bvh.ray_traverse(make_ray(origin.into(), dir.into(), 0.0, f32::INFINITY), &mut hit, |r, id| {
-            self.triangles[id].intersect(r)
-        });
+        bvh.ray_traverse(
+            make_ray(origin.into(), dir.into(), 0.0, f32::INFINITY),
+            &mut hit,
+            |r, id| self.triangles[id].intersect(r),
+        );
         hit.t
     }
 }

@@ -159,7 +159,11 @@ mod tests {
             yfov: 0.8,
             aspect: 1.5,
         };
-        for ndc in [Vec2::new(0.5, 0.5), Vec2::new(0.1, 0.9), Vec2::new(0.8, 0.2)] {
+        for ndc in [
+            Vec2::new(0.5, 0.5),
+            Vec2::new(0.1, 0.9),
+            Vec2::new(0.8, 0.2),
+        ] {
             let (o, d) = cam.ray(ndc, 1.5);
             let back = cam.project(o + 3.0 * d, 1.5).unwrap();
             assert!(back.abs_diff_eq(ndc, 1e-5), "{back} vs {ndc}");

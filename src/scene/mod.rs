@@ -217,6 +217,32 @@ impl Scene {
         })
     }
 
+    /// The same geometry with the valid ones among `portals`; the others are left out and
+    /// returned with their errors (an edit in progress must never stop the viewer).
+    pub fn with_portals_lenient(
+        &self,
+        portals: Vec<PortalDesc>,
+    ) -> (Scene, Vec<(usize, PortalError)>) {
+        let mut valid = Vec::new();
+        let mut errors = Vec::new();
+        for (i, d) in portals.iter().enumerate() {
+            match Portal::new(d, i, &self.geometry.lights) {
+                Ok(p) => valid.push(p),
+                Err(e) => errors.push((i, e)),
+            }
+        }
+        let desc = SceneDesc {
+            portals,
+            ..(*self.desc).clone()
+        };
+        let scene = Scene {
+            desc: Arc::new(desc),
+            portals: valid,
+            ..self.clone()
+        };
+        (scene, errors)
+    }
+
     /// How the scene is named in messages: its file, else its name.
     pub fn file_label(&self) -> String {
         match &self.source {
@@ -233,12 +259,12 @@ fn validate_portals(
 ) -> Result<Vec<Portal>, SceneError> {
     descs
         .iter()
-        .map(|d| {
-            Portal::new(d, lights).map_err(|error| SceneError::Portal {
+        .enumerate()
+        .map(|(i, d)| {
+            Portal::new(d, i, lights).map_err(|error| SceneError::Portal {
                 file: file.to_owned(),
                 error,
             })
         })
         .collect()
 }
-

@@ -44,7 +44,12 @@ pub fn square(c: Vec3, n: Vec3, h: f32) -> Vec<Vec3> {
     let n = n.normalize();
     let t = n.any_orthonormal_vector();
     let b = n.cross(t);
-    vec![c - h * t - h * b, c + h * t - h * b, c + h * t + h * b, c - h * t + h * b]
+    vec![
+        c - h * t - h * b,
+        c + h * t - h * b,
+        c + h * t + h * b,
+        c - h * t + h * b,
+    ]
 }
 
 pub fn camera(eye: Vec3, target: Vec3) -> Option<CameraDesc> {

@@ -1,0 +1,86 @@
+//! Colours of the antishadow regions and techniques, and the overlay image built from the
+//! worker's per-pixel classification.
+
+use egui::{Color32, ColorImage};
+use serde::{Deserialize, Serialize};
+
+use crate::light::Technique;
+use crate::light::antishadow::Region;
+use crate::render::primary::PrimaryBuffer;
+
+/// Which overlay is drawn over the render.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub enum OverlayKind {
+    #[default]
+    None,
+    /// The antishadow region of each pixel's primary hit.
+    Regions,
+    /// The technique the antishadow mode uses at each pixel's primary hit.
+    Techniques,
+}
+
+impl OverlayKind {
+    pub const ALL: [OverlayKind; 3] = [
+        OverlayKind::None,
+        OverlayKind::Regions,
+        OverlayKind::Techniques,
+    ];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            OverlayKind::None => "none",
+            OverlayKind::Regions => "regions",
+            OverlayKind::Techniques => "strategy used",
+        }
+    }
+}
+
+/// A region's colour; a technique shares the colour of the region that uses it.
+pub fn region_colour(region: Region) -> Color32 {
+    match region {
+        Region::Behind => Color32::from_rgb(128, 128, 128),
+        Region::Outside => Color32::from_rgb(70, 80, 200),
+        Region::Antiumbra => Color32::from_rgb(50, 200, 90),
+        Region::Antipenumbra => Color32::from_rgb(245, 200, 40),
+        Region::Antiantumbra => Color32::from_rgb(235, 80, 60),
+    }
+}
+
+/// `None` is "the light alone" (behind, outside, or no portal).
+pub fn technique_colour(technique: Option<Technique>) -> Color32 {
+    match technique {
+        Some(Technique::Light) => region_colour(Region::Antiumbra),
+        Some(Technique::Portal) => region_colour(Region::Antiantumbra),
+        Some(Technique::Projection) => region_colour(Region::Antipenumbra),
+        None => region_colour(Region::Behind),
+    }
+}
+
+/// The overlay as an image with `opacity` in [0, 1]; pixels that see nothing stay clear.
+pub fn overlay_image(
+    primary: &PrimaryBuffer,
+    kind: OverlayKind,
+    portal: Option<usize>,
+    opacity: f32,
+) -> ColorImage {
+    let alpha = (opacity.clamp(0.0, 1.0) * 255.0) as u8;
+    let pixels = (0..primary.combined.len())
+        .map(|i| {
+            let colour = match kind {
+                OverlayKind::None => None,
+                OverlayKind::Regions => primary.region(i, portal).map(region_colour),
+                OverlayKind::Techniques => primary
+                    .points
+                    .get(i)
+                    .copied()
+                    .flatten()
+                    .map(|_| technique_colour(primary.technique[i])),
+            };
+            match colour {
+                Some(c) => Color32::from_rgba_unmultiplied(c.r(), c.g(), c.b(), alpha),
+                None => Color32::TRANSPARENT,
+            }
+        })
+        .collect();
+    ColorImage::new([primary.width as usize, primary.height as usize], pixels)
+}

@@ -1,0 +1,134 @@
+//! What each pixel's primary ray sees in terms of the method: the antishadow region of its
+//! hit point for every portal, and the technique the antishadow mode uses there. The viewer's
+//! overlays and pixel inspector read this; it is computed once per scene, camera and size.
+
+use glam::{Vec2, Vec3};
+use rayon::prelude::*;
+
+use super::integrator::Integrator;
+use crate::light::antishadow::Region;
+use crate::light::estimator::LightSampler;
+use crate::light::{Strategy, Technique};
+use crate::scene::Scene;
+
+/// Per-pixel classification of primary hits, row-major.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PrimaryBuffer {
+    pub width: u32,
+    pub height: u32,
+    pub portal_count: usize,
+    /// `regions[pixel * portal_count + j]`: the hit point's region for portal `j`; `None`
+    /// where the ray hits nothing.
+    pub regions: Vec<Option<Region>>,
+    /// The region summarising all portals (the one the antishadow mode weights most).
+    pub combined: Vec<Option<Region>>,
+    /// The technique the antishadow mode's portal share uses at the hit (`None`: it samples
+    /// the light alone, or the pixel sees nothing).
+    pub technique: Vec<Option<Technique>>,
+    /// Hit points (for the inspector).
+    pub points: Vec<Option<Vec3>>,
+}
+
+impl PrimaryBuffer {
+    pub fn compute(scene: &Scene, width: u32, height: u32) -> PrimaryBuffer {
+        let sampler = LightSampler::new(scene, Strategy::Antishadow, None);
+        let portal_count = scene.portals.len();
+        let aspect = width as f32 / height as f32;
+        let rows: Vec<Vec<PixelClass>> = (0..height)
+            .into_par_iter()
+            .map(|y| {
+                (0..width)
+                    .map(|x| {
+                        let ndc = (Vec2::new(x as f32, y as f32) + 0.5)
+                            / Vec2::new(width as f32, height as f32);
+                        classify_ray(scene, &sampler, ndc, aspect)
+                    })
+                    .collect()
+            })
+            .collect();
+        let n = (width * height) as usize;
+        let mut buffer = PrimaryBuffer {
+            width,
+            height,
+            portal_count,
+            regions: Vec::with_capacity(n * portal_count),
+            combined: Vec::with_capacity(n),
+            technique: Vec::with_capacity(n),
+            points: Vec::with_capacity(n),
+        };
+        for (point, regions, combined, technique) in rows.into_iter().flatten() {
+            buffer.points.push(point);
+            buffer.regions.extend(regions);
+            buffer.combined.push(combined);
+            buffer.technique.push(technique);
+        }
+        buffer
+    }
+
+    /// The region of pixel `i` for `portal` (or combined when `None`).
+    pub fn region(&self, i: usize, portal: Option<usize>) -> Option<Region> {
+        match portal {
+            Some(j) if j < self.portal_count => self.regions[i * self.portal_count + j],
+            Some(_) => None,
+            None => self.combined.get(i).copied().flatten(),
+        }
+    }
+
+    /// Share of the pixels that see something, per region (indexed like `Region::ALL`).
+    pub fn shares(&self, portal: Option<usize>) -> [f32; 5] {
+        let mut counts = [0usize; 5];
+        let mut total = 0;
+        for i in 0..self.combined.len() {
+            if let Some(r) = self.region(i, portal) {
+                total += 1;
+                if let Some(k) = Region::ALL.iter().position(|&a| a == r) {
+                    counts[k] += 1;
+                }
+            }
+        }
+        counts.map(|c| c as f32 / total.max(1) as f32)
+    }
+}
+
+/// One pixel: hit point, region per portal, combined region, technique.
+type PixelClass = (
+    Option<Vec3>,
+    Vec<Option<Region>>,
+    Option<Region>,
+    Option<Technique>,
+);
+
+fn classify_ray(scene: &Scene, sampler: &LightSampler, ndc: Vec2, aspect: f32) -> PixelClass {
+    let (o, d) = scene.camera.ray(ndc, aspect);
+    let g = &scene.geometry;
+    let Some(hit) = g.bvh.closest_hit(o, d, 0.0, f32::INFINITY) else {
+        return (None, vec![None; scene.portals.len()], None, None);
+    };
+    let tri = &g.triangles[hit.triangle as usize];
+    let (p, _) = tri.point(hit.bary);
+    let ng = tri.geometric_normal();
+    // Classify where shading happens: just off the surface, on the camera's side.
+    let x = Integrator::offset(p, if ng.dot(d) > 0.0 { -ng } else { ng });
+    let regions = scene
+        .portals
+        .iter()
+        .map(|portal| Some(portal.planes.classify(x)))
+        .collect();
+    let mut best: Option<(f32, Region, Option<Technique>)> = None;
+    for light in 0..g.lights.len() {
+        let ctx = sampler.context(scene, light, x);
+        if !ctx.has_portals {
+            continue;
+        }
+        let top = ctx
+            .terms
+            .iter()
+            .max_by(|a, b| a.weight.total_cmp(&b.weight));
+        let weight = sampler.light_probability(light) * top.map_or(0.0, |t| t.weight);
+        if best.is_none_or(|(w, _, _)| weight > w) {
+            best = Some((weight, ctx.region, top.map(|t| t.technique)));
+        }
+    }
+    let (combined, technique) = best.map_or((None, None), |(_, r, t)| (Some(r), t));
+    (Some(p), regions, combined, technique)
+}

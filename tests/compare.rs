@@ -1,0 +1,303 @@
+//! The equal-time comparison: metrics on known images, the scheduler's fairness, the reference
+//! cache, and the files `portalview compare` writes. Run in release
+//! (`cargo test --release --test compare`); a few seconds in all.
+
+use glam::Vec3;
+use indicatif::ProgressBar;
+use portalview::cli::{Command, CompareArgs, run};
+use portalview::compare::{
+    EqualTime, ImageSpec, RELMSE_EPSILON, ReferenceBudget, ReferenceOrigin, cache_key,
+    cached_reference, mse, relmse,
+};
+use portalview::light::Strategy;
+use portalview::render::integrator::RenderSettings;
+use portalview::scene::Scene;
+use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+use std::sync::atomic::AtomicBool;
+
+/// The tests that time renders run one at a time, so that they do not share the cores.
+static SERIAL: Mutex<()> = Mutex::new(());
+
+fn serial() -> std::sync::MutexGuard<'static, ()> {
+    SERIAL.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// A fresh, empty folder under the system's temporary folder.
+fn temp_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("portalview-test-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn compare_args(out: &Path, cache: &Path) -> CompareArgs {
+    CompareArgs {
+        scene: Some("fig8b".to_owned()),
+        figure8: false,
+        strategies: Strategy::ALL.to_vec(),
+        seconds: 0.2,
+        out: out.to_owned(),
+        width: 24,
+        height: Some(18),
+        seed: 3,
+        max_depth: 1,
+        reference: None,
+        reference_seconds: None,
+        reference_spp: Some(64),
+        cache_dir: Some(cache.to_owned()),
+    }
+}
+
+/// Parses a CSV without quoted fields: the header and the rows.
+fn read_csv(path: &Path) -> (String, Vec<Vec<String>>) {
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut lines = text.lines();
+    let header = lines.next().unwrap().to_owned();
+    let rows = lines
+        .map(|l| l.split(',').map(str::to_owned).collect())
+        .collect();
+    (header, rows)
+}
+
+fn assert_svg(path: &Path, strategies: usize) {
+    let svg = std::fs::read_to_string(path).unwrap();
+    let start = svg.trim_start();
+    assert!(
+        start.starts_with("<svg") || start.starts_with("<?xml"),
+        "{}",
+        &svg[..80.min(svg.len())]
+    );
+    assert!(svg.trim_end().ends_with("</svg>"));
+    // One line per strategy, and as many legend entries.
+    let lines = svg.matches("<polyline").count() + svg.matches("<path").count();
+    assert!(
+        lines >= strategies,
+        "{lines} polylines for {strategies} strategies"
+    );
+    for s in Strategy::ALL {
+        assert!(svg.contains(s.name()), "no legend for {}", s.name());
+    }
+}
+
+#[test]
+fn metrics_match_hand_computed_values() {
+    let reference = [Vec3::new(1.0, 1.0, 1.0), Vec3::new(0.0, 0.0, 0.0)];
+    let image = [Vec3::new(2.0, 1.0, 1.0), Vec3::new(0.0, 0.0, 0.1)];
+    // Squared errors 1, 0, 0 and 0, 0, 0.01 over six channels.
+    assert!((mse(&image, &reference) - 1.01 / 6.0).abs() < 1e-7);
+    // 1 / (1 + ε) in the first pixel, 0.01 / (0 + ε) = 1 in the second (ε = 0.01).
+    assert_eq!(RELMSE_EPSILON, 1e-2);
+    let expected = (1.0 / 1.01 + 1.0) / 6.0;
+    assert!(
+        (relmse(&image, &reference) - expected).abs() < 1e-6,
+        "{}",
+        relmse(&image, &reference)
+    );
+    assert_eq!(mse(&reference, &reference), 0.0);
+    assert_eq!(relmse(&reference, &reference), 0.0);
+    // Symmetric in its arguments for MSE only.
+    assert_eq!(mse(&image, &reference), mse(&reference, &image));
+    assert_eq!(mse(&[], &[]), 0.0);
+}
+
+#[test]
+fn short_compare_writes_csv_svg_and_summary() {
+    let _serial = serial();
+    let root = temp_dir("compare");
+    let (out, cache) = (root.join("out"), root.join("cache"));
+    run(Command::Compare(compare_args(&out, &cache))).unwrap();
+
+    let (header, rows) = read_csv(&out.join("convergence.csv"));
+    assert_eq!(header, "scene,strategy,seconds,spp,mse,relmse");
+    assert!(!rows.is_empty());
+    for s in Strategy::ALL {
+        let mine: Vec<&Vec<String>> = rows.iter().filter(|r| r[1] == s.name()).collect();
+        assert!(!mine.is_empty(), "no rows for {}", s.name());
+        let mut last = (0.0f64, 0u32);
+        for r in mine {
+            assert_eq!(r.len(), 6, "{r:?}");
+            assert_eq!(r[0], "fig8b");
+            let seconds: f64 = r[2].parse().unwrap();
+            let spp: u32 = r[3].parse().unwrap();
+            let (m, rel): (f64, f64) = (r[4].parse().unwrap(), r[5].parse().unwrap());
+            assert!(
+                seconds > last.0 && spp > last.1,
+                "{} not increasing: {r:?}",
+                s.name()
+            );
+            assert!(
+                m.is_finite() && m >= 0.0 && rel.is_finite() && rel >= 0.0,
+                "{r:?}"
+            );
+            last = (seconds, spp);
+        }
+        // Each strategy ran for its time, overshooting by one short pass at most.
+        assert!(last.0 >= 0.2 && last.0 < 0.4, "{}: {} s", s.name(), last.0);
+    }
+    assert_svg(&out.join("convergence.svg"), Strategy::ALL.len());
+    let summary = std::fs::read_to_string(out.join("summary.md")).unwrap();
+    for s in Strategy::ALL {
+        assert!(summary.contains(&format!("| {} |", s.name())), "{summary}");
+    }
+    assert!(summary.contains("relative standard error"), "{summary}");
+    // The reference was rendered and cached: one EXR and its sidecar.
+    let cached: Vec<String> = std::fs::read_dir(&cache)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    assert_eq!(
+        cached.iter().filter(|n| n.ends_with(".exr")).count(),
+        1,
+        "{cached:?}"
+    );
+    assert_eq!(
+        cached.iter().filter(|n| n.ends_with(".json")).count(),
+        1,
+        "{cached:?}"
+    );
+    let _ = std::fs::remove_dir_all(&root);
+}
+
+#[test]
+fn figure8_writes_its_table_for_every_scene() {
+    let _serial = serial();
+    let root = temp_dir("figure8");
+    let (out, cache) = (root.join("out"), root.join("cache"));
+    let args = CompareArgs {
+        scene: None,
+        figure8: true,
+        seconds: 0.05,
+        width: 16,
+        height: Some(12),
+        reference_spp: Some(16),
+        ..compare_args(&out, &cache)
+    };
+    run(Command::Compare(args)).unwrap();
+    let (header, rows) = read_csv(&out.join("figure8.csv"));
+    assert_eq!(header, "scene,strategy,seconds,mse,efficiency_vs_light");
+    assert_eq!(rows.len(), 3 * Strategy::ALL.len());
+    for scene in ["fig8a", "fig8b", "fig8c"] {
+        for s in Strategy::ALL {
+            let row = rows
+                .iter()
+                .find(|r| r[0] == scene && r[1] == s.name())
+                .unwrap_or_else(|| panic!("no row for {scene} {}", s.name()));
+            assert!(row[2].parse::<f64>().unwrap() >= 0.05);
+            assert!(row[3].parse::<f64>().unwrap() >= 0.0);
+            let efficiency: f64 = row[4].parse().unwrap();
+            if s == Strategy::Light {
+                assert!((efficiency - 1.0).abs() < 1e-9);
+            }
+        }
+        assert!(out.join(scene).join("convergence.csv").exists());
+        assert!(out.join(scene).join("summary.md").exists());
+    }
+    assert_svg(&out.join("figure8.svg"), Strategy::ALL.len());
+    let md = std::fs::read_to_string(out.join("figure8.md")).unwrap();
+    assert!(md.contains("| fig8c | antishadow |"), "{md}");
+    let _ = std::fs::remove_dir_all(&root);
+}
+
+/// This checks the scheduling, not the strategies' speed: whatever each pass costs, every
+/// strategy's accumulated pass time must end within one pass of the others'.
+#[test]
+fn equal_time_scheduler_shares_time_evenly() {
+    let _serial = serial();
+    let scene = Scene::open("fig8c").unwrap();
+    let mut schedule = EqualTime::new(scene, &Strategy::ALL, 32, 24, RenderSettings::default());
+    // Ties go by order: the first four steps render each strategy once, in order.
+    let never = AtomicBool::new(false);
+    for i in 0..4 {
+        assert_eq!(schedule.step(&never).unwrap(), Some(i));
+    }
+    while schedule.runs().iter().map(|r| r.seconds).sum::<f64>() < 1.0 {
+        schedule.step(&never).unwrap();
+    }
+    let seconds: Vec<f64> = schedule.runs().iter().map(|r| r.seconds).collect();
+    let mean = seconds.iter().sum::<f64>() / seconds.len() as f64;
+    for (run, &s) in schedule.runs().iter().zip(&seconds) {
+        assert!(
+            (s - mean).abs() < 0.1 * mean,
+            "{}: {s} s of {seconds:?}",
+            run.strategy.name()
+        );
+        assert!(run.film.spp > 1 && run.stats.samples == run.film.spp as u64);
+    }
+    // A cancelled pass changes nothing.
+    let before: Vec<u32> = schedule.runs().iter().map(|r| r.film.spp).collect();
+    assert!(schedule.step(&AtomicBool::new(true)).is_err());
+    let after: Vec<u32> = schedule.runs().iter().map(|r| r.film.spp).collect();
+    assert_eq!(before, after);
+    // Without strategies there is nothing to step.
+    let empty = Scene::open("fig8c").unwrap();
+    let mut none = EqualTime::new(empty, &[], 8, 8, RenderSettings::default());
+    assert_eq!(none.step(&never).unwrap(), None);
+}
+
+#[test]
+fn reference_cache_hits_on_second_request() {
+    let _serial = serial();
+    let cache = temp_dir("cache");
+    let scene = Scene::open("fig8b").unwrap();
+    let image = ImageSpec {
+        width: 20,
+        height: 15,
+        max_depth: 1,
+    };
+    let hidden = ProgressBar::hidden();
+    let budget = ReferenceBudget::Spp(8);
+    let first = cached_reference(&cache, &scene, image, 0, budget, &hidden).unwrap();
+    let key = cache_key(&scene, image);
+    let exr = cache.join(format!("{key}.exr"));
+    assert_eq!(first.origin, ReferenceOrigin::Rendered(Some(exr.clone())));
+    assert!(exr.exists() && cache.join(format!("{key}.json")).exists());
+    let info = first.info.clone().unwrap();
+    assert_eq!((info.spp, info.width, info.height), (8, 20, 15));
+    assert!(
+        info.convergence.mse_floor > 0.0 && info.convergence.mean_relative_standard_error > 0.0
+    );
+
+    // Same key: loaded, identical pixels and information.
+    let second = cached_reference(&cache, &scene, image, 0, budget, &hidden).unwrap();
+    assert_eq!(second.origin, ReferenceOrigin::Cached(exr.clone()));
+    assert_eq!(second.pixels, first.pixels);
+    assert_eq!(second.info, first.info);
+    // A smaller budget is covered by the cached one; a larger one renders again.
+    let smaller =
+        cached_reference(&cache, &scene, image, 0, ReferenceBudget::Spp(4), &hidden).unwrap();
+    assert_eq!(smaller.origin, ReferenceOrigin::Cached(exr.clone()));
+    let larger =
+        cached_reference(&cache, &scene, image, 0, ReferenceBudget::Spp(12), &hidden).unwrap();
+    assert_eq!(larger.origin, ReferenceOrigin::Rendered(Some(exr.clone())));
+    assert_eq!(larger.info.unwrap().spp, 12);
+
+    // A damaged entry is a miss, rendered again and replaced.
+    std::fs::write(cache.join(format!("{key}.json")), "{ not json").unwrap();
+    let repaired = cached_reference(&cache, &scene, image, 0, budget, &hidden).unwrap();
+    assert_eq!(
+        repaired.origin,
+        ReferenceOrigin::Rendered(Some(exr.clone()))
+    );
+    let again = cached_reference(&cache, &scene, image, 0, budget, &hidden).unwrap();
+    assert_eq!(again.origin, ReferenceOrigin::Cached(exr.clone()));
+
+    // The key is stable and depends on the scene's content, camera and image settings.
+    assert_eq!(cache_key(&Scene::open("fig8b").unwrap(), image), key);
+    assert_ne!(cache_key(&Scene::open("fig8c").unwrap(), image), key);
+    assert_ne!(cache_key(&scene, ImageSpec { width: 21, ..image }), key);
+    assert_ne!(
+        cache_key(
+            &scene,
+            ImageSpec {
+                max_depth: 2,
+                ..image
+            }
+        ),
+        key
+    );
+    let mut moved = scene.clone();
+    moved.camera.eye.x += 0.01;
+    assert_ne!(cache_key(&moved, image), key);
+    let _ = std::fs::remove_dir_all(&cache);
+}

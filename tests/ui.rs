@@ -1,0 +1,221 @@
+//! The real viewer driven by egui_kittest with software Vulkan (Mesa llvmpipe): strategy
+//! switching reaches the worker, overlays change pixels, portal edits restart accumulation and
+//! change the overlay, saving round-trips, and snapshots of the main panels.
+
+use egui_kittest::Harness;
+use egui_kittest::kittest::Queryable;
+use glam::Vec3;
+use portalview::app::PortalViewApp;
+use portalview::app::overlay::OverlayKind;
+use portalview::light::Strategy;
+use portalview::light::antishadow::Region;
+use std::time::{Duration, Instant};
+
+/// UI tests run one at a time: each harness renders through llvmpipe and runs its own render
+/// worker, and on a small machine several at once starve each other's workers.
+static SERIAL: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
+fn serial() -> std::sync::MutexGuard<'static, ()> {
+    SERIAL.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// One factory for the app under test.
+fn harness(scene: &str) -> Harness<'static, PortalViewApp> {
+    let scene = scene.to_owned();
+    Harness::builder()
+        .with_size(egui::vec2(1100.0, 700.0))
+        .wgpu()
+        .build_eframe(move |cc| PortalViewApp::new(&cc.egui_ctx, None, Some(scene)).unwrap())
+}
+
+/// Steps the UI until `done` holds (the worker runs on its own thread), or fails with a
+/// screenshot of what the window showed.
+fn step_until(
+    h: &mut Harness<'static, PortalViewApp>,
+    what: &str,
+    done: impl Fn(&PortalViewApp) -> bool,
+) {
+    let start = Instant::now();
+    while !done(h.state()) {
+        if start.elapsed() > Duration::from_secs(60) {
+            if let Ok(image) = h.render() {
+                let _ = image.save(format!("target/ui-timeout-{}.png", what.replace(' ', "_")));
+            }
+            panic!("timed out waiting for {what}");
+        }
+        std::thread::sleep(Duration::from_millis(50));
+        h.step();
+    }
+}
+
+/// A full-resolution frame of the newest request, with its per-pixel classification.
+fn has_full_frame(app: &PortalViewApp) -> bool {
+    app.frame()
+        .is_some_and(|f| !f.preview && f.primary.is_some() && f.spp >= 2)
+}
+
+#[test]
+fn switching_strategy_changes_what_the_worker_renders() {
+    let _serial = serial();
+    let mut h = harness("fig8a");
+    step_until(&mut h, "first frame", has_full_frame);
+    // fig8a's object is in the antiantumbra: antishadow samples the portal there.
+    let stats = h.state().frame().unwrap().stats;
+    assert!(stats.techniques[1] > 0, "no portal samples: {stats:?}");
+    h.get_by_label("light").click();
+    h.step();
+    assert_eq!(h.state().settings.strategy, Strategy::Light);
+    let generation = h.state().frame().unwrap().generation;
+    step_until(&mut h, "light frame", |a| {
+        has_full_frame(a) && a.frame().unwrap().generation > generation
+    });
+    let stats = h.state().frame().unwrap().stats;
+    assert_eq!(
+        stats.techniques[1] + stats.techniques[2],
+        0,
+        "light sampling drew portal samples"
+    );
+    assert!(stats.techniques[0] > 0);
+    // Key 3 selects projection.
+    h.key_press(egui::Key::Num3);
+    h.step();
+    assert_eq!(h.state().settings.strategy, Strategy::Projection);
+}
+
+#[test]
+fn toggling_the_overlay_changes_the_pixels() {
+    let _serial = serial();
+    let mut h = harness("fig8c");
+    step_until(&mut h, "first frame", has_full_frame);
+    h.state_mut().set_paused(true);
+    h.step();
+    let before = h.render().unwrap();
+    h.state_mut().settings.overlay = OverlayKind::Regions;
+    h.step();
+    h.step();
+    let after = h.render().unwrap();
+    let changed = before
+        .pixels()
+        .zip(after.pixels())
+        .filter(|(a, b)| a != b)
+        .count();
+    assert!(changed > 10_000, "only {changed} pixels changed");
+}
+
+#[test]
+fn moving_a_portal_restarts_and_changes_the_overlay() {
+    let _serial = serial();
+    let mut h = harness("fig8b");
+    step_until(&mut h, "first frame", has_full_frame);
+    let before = h.state().frame().unwrap().clone();
+    let shares = before.primary.as_ref().unwrap().shares(None);
+    let antiumbra = |s: [f32; 5]| {
+        s[Region::ALL
+            .iter()
+            .position(|&r| r == Region::Antiumbra)
+            .unwrap()]
+    };
+    // Slide the portal sideways: much of the floor leaves the antiumbra.
+    let app = h.state_mut();
+    let mut pose = app.editor.pose(0).unwrap();
+    app.editor.checkpoint();
+    pose.center += Vec3::new(0.9, 0.0, 0.0);
+    app.editor.set_pose(0, pose);
+    app.apply_portal_edit();
+    step_until(&mut h, "frame after the edit", |a| {
+        has_full_frame(a) && a.frame().unwrap().generation > before.generation
+    });
+    let after = h.state().frame().unwrap();
+    assert!(
+        after.spp < before.spp + 1000,
+        "accumulation did not restart"
+    );
+    let moved = after.primary.as_ref().unwrap().shares(None);
+    assert!(
+        antiumbra(moved) < antiumbra(shares) - 0.05,
+        "{shares:?} -> {moved:?}"
+    );
+    // Undo from the Edit menu puts it back.
+    h.get_by_label("Edit").click();
+    h.run_steps(2);
+    h.get_by_label("Undo  (Ctrl+Z)").click();
+    h.run_steps(2);
+    assert_eq!(
+        h.state().editor.portals,
+        portalview::scene::Scene::open("fig8b")
+            .unwrap()
+            .desc
+            .portals
+    );
+}
+
+#[test]
+fn save_then_load_round_trips_the_portals() {
+    let _serial = serial();
+    let dir = std::env::temp_dir().join(format!("portalview-ui-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("fig8b.glb");
+    std::fs::copy(
+        concat!(env!("CARGO_MANIFEST_DIR"), "/assets/fig8b.glb"),
+        &path,
+    )
+    .unwrap();
+    let mut h = harness(path.to_str().unwrap());
+    h.step();
+    let app = h.state_mut();
+    let mut pose = app.editor.pose(0).unwrap();
+    app.editor.checkpoint();
+    pose.center += Vec3::new(0.1, 0.0, -0.05);
+    pose.scale *= 1.2;
+    app.editor.set_pose(0, pose);
+    app.editor.portals[0].alpha = 0.25;
+    app.apply_portal_edit();
+    let edited = app.editor.portals[0].world_triangles();
+    // Save through the File menu.
+    h.get_by_label("File").click();
+    h.run_steps(2);
+    h.get_by_label("Save portals").click();
+    h.run_steps(2);
+    assert!(!h.state().editor.dirty);
+    let reloaded = portalview::scene::Scene::load(&path).unwrap();
+    let portal = &reloaded.desc.portals[0];
+    assert!((portal.alpha - 0.25).abs() < 1e-6);
+    for (a, b) in portal
+        .world_triangles()
+        .iter()
+        .flatten()
+        .zip(edited.iter().flatten())
+    {
+        assert!(a.abs_diff_eq(*b, 1e-4), "{a} vs {b}");
+    }
+    // Everything but the portal is as it was.
+    let original = portalview::scene::Scene::load(std::path::Path::new(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/assets/fig8b.glb"
+    )))
+    .unwrap();
+    assert_eq!(reloaded.desc.meshes, original.desc.meshes);
+    assert_eq!(reloaded.desc.materials, original.desc.materials);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Snapshots of the main panels, with rendering paused before the first pass so that the
+/// image is deterministic (outlines and gizmo over a black viewport; every panel drawn).
+#[test]
+fn snapshot_main_panels() {
+    let _serial = serial();
+    let mut h = Harness::builder()
+        .with_size(egui::vec2(1100.0, 700.0))
+        .wgpu()
+        .build_eframe(|cc| {
+            let mut app = PortalViewApp::new(&cc.egui_ctx, None, Some("lampshade".into())).unwrap();
+            app.set_paused(true);
+            app
+        });
+    h.run_steps(4);
+    h.snapshot("main_window");
+    h.state_mut().settings.overlay = OverlayKind::Techniques;
+    h.state_mut().settings.show_volumes = true;
+    h.run_steps(2);
+    h.snapshot("overlay_controls");
+}
