@@ -89,6 +89,10 @@ pub struct BenchArgs {
     /// Image size for the render measurements.
     #[arg(long, default_value_t = 256)]
     pub size: u32,
+    /// Measure the viewer instead (headless): UI frame time while the renderer saturates the
+    /// CPU, and the time from a portal edit to the first new preview.
+    #[arg(long)]
+    pub ui: bool,
 }
 
 /// `portalview compare`: every strategy gets the same pass render time; MSE against a reference
@@ -146,6 +150,7 @@ pub fn run(command: Command) -> Result<()> {
         Command::View { scene } => crate::app::run_viewer(scene),
         Command::Render(args) => render(&args),
         Command::Export { scene, out } => export(&scene, &out),
+        Command::Bench(args) if args.ui => crate::bench::run_ui(&args),
         Command::Bench(args) => crate::bench::run(&args),
         Command::Compare(args) => crate::compare::run(&args),
     }

@@ -803,7 +803,11 @@ fn sci(v: f64) -> String {
 }
 
 fn ratio(v: Option<f64>) -> String {
-    v.map_or("–".to_owned(), |v| format!("{v:.2}×"))
+    match v {
+        Some(v) if v >= 0.1 => format!("{v:.2}×"),
+        Some(v) => format!("{v:.2e}×"),
+        None => "–".to_owned(),
+    }
 }
 
 /// Markdown lines on the reference's origin and convergence.

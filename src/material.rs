@@ -80,7 +80,7 @@ impl Material {
         self.specular * schlick(self.f0_dielectric, cos_o)
     }
 
-    /// Probability of sampling the specular lobe.
+    /// Probability of sampling the specular lobe (the pdf in `eval_pdf` mixes by the same).
     fn specular_probability(&self, cos_o: f32) -> f32 {
         let m = self.metallic;
         m + (1.0 - m) * self.specular_weight(cos_o)
@@ -88,27 +88,38 @@ impl Material {
 
     /// BSDF value `f(wo, wi)` (without the cosine).
     pub fn eval(&self, wo: Vec3, wi: Vec3) -> Vec3 {
-        if wo.z <= 0.0 || wi.z <= 0.0 {
-            return Vec3::ZERO;
-        }
-        let m = self.metallic;
-        let s = self.specular_weight(wo.z);
-        let diffuse = (1.0 - m) * (1.0 - s) * self.base_color * FRAC_1_PI;
-        let h = (wo + wi).normalize();
-        let dg = ggx_d(h, self.alpha) * ggx_g2(wo, wi, self.alpha) / (4.0 * wo.z * wi.z);
-        let metal = self.base_color + (Vec3::ONE - self.base_color) * schlick(0.0, wo.dot(h));
-        diffuse + ((1.0 - m) * s) * dg * Vec3::ONE + m * dg * metal
+        self.eval_pdf(wo, wi).0
     }
 
     /// Solid-angle pdf of `sample` drawing `wi`.
     pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
+        self.eval_pdf(wo, wi).1
+    }
+
+    /// `f(wo, wi)` and the pdf of `sample` drawing `wi`, sharing the microfacet terms.
+    #[inline]
+    pub fn eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
         if wo.z <= 0.0 || wi.z <= 0.0 {
-            return 0.0;
+            return (Vec3::ZERO, 0.0);
         }
+        let m = self.metallic;
+        let s = self.specular_weight(wo.z);
+        let diffuse = (1.0 - m) * (1.0 - s) * self.base_color * FRAC_1_PI;
         let p_spec = self.specular_probability(wo.z);
+        let pdf_diffuse = (1.0 - p_spec) * cosine_hemisphere_pdf(wi.z);
+        if p_spec <= 0.0 {
+            return (diffuse, pdf_diffuse);
+        }
         let h = (wo + wi).normalize();
-        (1.0 - p_spec) * cosine_hemisphere_pdf(wi.z)
-            + p_spec * vndf_reflection_pdf(wo, h, self.alpha)
+        let d = ggx_d(h, self.alpha);
+        let (lambda_o, lambda_i) = (ggx_lambda(wo, self.alpha), ggx_lambda(wi, self.alpha));
+        // Height-correlated masking-shadowing G2 for the value; the pdf of visible-normal
+        // sampling uses the masking G1(wo) = 1 / (1 + Λo).
+        let dg = d / ((1.0 + lambda_o + lambda_i) * 4.0 * wo.z * wi.z);
+        let metal = self.base_color + (Vec3::ONE - self.base_color) * schlick(0.0, wo.dot(h));
+        let f = diffuse + ((1.0 - m) * s) * dg * Vec3::ONE + m * dg * metal;
+        let pdf_specular = d / ((1.0 + lambda_o) * 4.0 * wo.z);
+        (f, pdf_diffuse + p_spec * pdf_specular)
     }
 
     /// Draws `wi`: the lobe by `u_lobe`, then the direction by `u`.
@@ -126,12 +137,8 @@ impl Material {
         } else {
             sample_cosine_hemisphere(u)
         };
-        let pdf = self.pdf(wo, wi);
-        (pdf > 0.0).then(|| BsdfSample {
-            wi,
-            f: self.eval(wo, wi),
-            pdf,
-        })
+        let (f, pdf) = self.eval_pdf(wo, wi);
+        (pdf > 0.0).then_some(BsdfSample { wi, f, pdf })
     }
 }
 
@@ -158,15 +165,6 @@ fn ggx_lambda(w: Vec3, alpha: f32) -> f32 {
     0.5 * ((1.0 + alpha * alpha * tan2).sqrt() - 1.0)
 }
 
-fn ggx_g1(w: Vec3, alpha: f32) -> f32 {
-    1.0 / (1.0 + ggx_lambda(w, alpha))
-}
-
-/// Height-correlated masking-shadowing.
-fn ggx_g2(wo: Vec3, wi: Vec3, alpha: f32) -> f32 {
-    1.0 / (1.0 + ggx_lambda(wo, alpha) + ggx_lambda(wi, alpha))
-}
-
 /// Visible-normal sampling (Heitz 2018): a microfacet normal seen from `wo`.
 fn sample_ggx_vndf(wo: Vec3, alpha: f32, u: Vec2) -> Vec3 {
     let vh = Vec3::new(alpha * wo.x, alpha * wo.y, wo.z).normalize();
@@ -184,11 +182,6 @@ fn sample_ggx_vndf(wo: Vec3, alpha: f32, u: Vec2) -> Vec3 {
     let p2 = (1.0 - s) * (1.0 - p1 * p1).max(0.0).sqrt() + s * r * phi.sin();
     let nh = p1 * t1 + p2 * t2 + (1.0 - p1 * p1 - p2 * p2).max(0.0).sqrt() * vh;
     Vec3::new(alpha * nh.x, alpha * nh.y, nh.z.max(1e-7)).normalize()
-}
-
-/// pdf of `wi = reflect(wo, h)` when `h` is drawn by `sample_ggx_vndf`.
-fn vndf_reflection_pdf(wo: Vec3, h: Vec3, alpha: f32) -> f32 {
-    ggx_g1(wo, alpha) * ggx_d(h, alpha) / (4.0 * wo.z)
 }
 
 #[cfg(test)]

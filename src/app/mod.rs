@@ -105,6 +105,8 @@ pub struct PortalViewApp {
     overlay_texture: Option<TextureHandle>,
     /// What the overlay texture shows: (generation, kind, portal, opacity).
     overlay_key: Option<(u64, OverlayKind, Option<usize>, u32)>,
+    /// The legend's pixel shares per region, for (generation, portal).
+    legend: Option<((u64, Option<usize>), [f32; 5])>,
     /// The frame on screen, kept to re-tone-map when exposure changes.
     frame: Option<Frame>,
     /// Which portal the region overlay shows (`None`: all).
@@ -161,6 +163,7 @@ impl PortalViewApp {
             texture: None,
             overlay_texture: None,
             overlay_key: None,
+            legend: None,
             frame: None,
             overlay_portal: None,
             requested_size: (0, 0),
@@ -565,11 +568,17 @@ impl PortalViewApp {
         ui.checkbox(&mut settings.show_outlines, "portal and light outlines");
         ui.checkbox(&mut settings.show_volumes, "antishadow volume edges");
         // The legend: colours and the share of pixels in each region.
-        let shares = self
-            .frame
-            .as_ref()
-            .and_then(|f| f.primary.as_ref())
-            .map(|p| p.shares(self.overlay_portal));
+        let shares = self.frame.as_ref().and_then(|f| {
+            let key = (f.generation, self.overlay_portal);
+            match self.legend {
+                Some((k, shares)) if k == key => Some(shares),
+                _ => {
+                    let shares = f.primary.as_ref()?.shares(self.overlay_portal);
+                    self.legend = Some((key, shares));
+                    Some(shares)
+                }
+            }
+        });
         egui::Grid::new("legend").num_columns(3).show(ui, |ui| {
             for (k, region) in Region::ALL.into_iter().enumerate() {
                 let (rect, _) =

@@ -4,7 +4,7 @@
 use glam::Vec3;
 use std::time::Instant;
 
-use super::stats::{Stats, TIMING_STRIDE};
+use super::stats::{Stats, TIMING_STRIDE, timer_overhead};
 use crate::light::Strategy;
 use crate::light::area::LightPoint;
 use crate::light::estimator::{LightContext, LightSample, LightSampler};
@@ -214,7 +214,8 @@ impl<'a> Integrator<'a> {
         self.lights.fill_context(self.scene, light, s.x, ctx);
         let sample = self.lights.sample(self.scene, ctx, u_technique, u);
         if let Some(start) = start {
-            stats.sampling_ns += start.elapsed().as_nanos() as u64 * TIMING_STRIDE;
+            let spent = start.elapsed().saturating_sub(timer_overhead());
+            stats.sampling_ns += spent.as_nanos() as u64 * TIMING_STRIDE;
         }
         if ctx.has_portals {
             stats.count_region(ctx.region);
@@ -250,7 +251,7 @@ impl<'a> Integrator<'a> {
             return Vec3::ZERO;
         }
         let wi_local = s.frame.to_local(sample.wi);
-        let f = s.material.eval(s.wo_local, wi_local);
+        let (f, bsdf_pdf) = s.material.eval_pdf(s.wo_local, wi_local);
         if f == Vec3::ZERO {
             return Vec3::ZERO;
         }
@@ -261,7 +262,6 @@ impl<'a> Integrator<'a> {
             return Vec3::ZERO;
         }
         let light_pdf = light_prob * sample.pdf;
-        let bsdf_pdf = s.material.pdf(s.wo_local, wi_local);
         f * sample.le * wi_local.z * power_heuristic(light_pdf, bsdf_pdf) / light_pdf
     }
 

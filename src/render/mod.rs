@@ -36,8 +36,7 @@ pub fn render_pass(
 ) -> Result<(Vec<Vec3>, Stats), Cancelled> {
     let tiles_x = width.div_ceil(TILE);
     let tiles_y = height.div_ceil(TILE);
-    let camera = &integrator.scene().camera;
-    let aspect = width as f32 / height as f32;
+    let rays = integrator.scene().camera.rays(width as f32 / height as f32);
     let seed = integrator.settings().seed;
     let tiles: Vec<Option<(u32, Vec<Vec3>, Stats)>> = (0..tiles_x * tiles_y)
         .into_par_iter()
@@ -55,7 +54,7 @@ pub fn render_pass(
                     let jitter = rng.uniform2();
                     let ndc = (Vec2::new(x as f32, y as f32) + jitter)
                         / Vec2::new(width as f32, height as f32);
-                    let (o, d) = camera.ray(ndc, aspect);
+                    let (o, d) = rays.ray(ndc);
                     let l = integrator.radiance(o, d, &mut rng, &mut stats);
                     // A NaN or infinity would poison the mean forever; drop it loudly in tests.
                     debug_assert!(l.is_finite(), "non-finite radiance at pixel {x},{y}");

@@ -31,6 +31,24 @@ pub struct Stats {
 /// One shading point in this many is timed (timing each would cost more than sampling).
 pub const TIMING_STRIDE: u64 = 16;
 
+/// The cost of reading the clock twice (`Instant::now` and `elapsed`), measured once, so that
+/// sampling times report the sampling and not the stopwatch.
+pub fn timer_overhead() -> std::time::Duration {
+    static OVERHEAD: std::sync::OnceLock<std::time::Duration> = std::sync::OnceLock::new();
+    *OVERHEAD.get_or_init(|| {
+        (0..5)
+            .map(|_| {
+                let start = std::time::Instant::now();
+                for _ in 0..1000 {
+                    std::hint::black_box(std::time::Instant::now().elapsed());
+                }
+                start.elapsed() / 1000
+            })
+            .min()
+            .unwrap_or_default()
+    })
+}
+
 impl Stats {
     pub fn count_region(&mut self, region: Region) {
         if let Some(i) = Region::ALL.iter().position(|&r| r == region) {

@@ -7,7 +7,39 @@ use std::path::Path;
 /// Linear radiance times `2^exposure`, clamped and sRGB-encoded to 8 bits.
 pub fn to_srgb8(c: Vec3, exposure: f32) -> [u8; 3] {
     let c = c * exposure.exp2();
-    [c.x, c.y, c.z].map(|v| (encode_srgb(v.clamp(0.0, 1.0)) * 255.0 + 0.5) as u8)
+    [c.x, c.y, c.z].map(srgb8)
+}
+
+/// Entries of the sRGB table, indexed by the square root of the linear value so that dark
+/// values, where 8-bit sRGB steps are finest, get the most entries.
+const SRGB_TABLE_SIZE: usize = 4096;
+
+/// 8-bit sRGB of a linear value, from a table (a `powf` per channel per pixel made uploading a
+/// frame the slowest thing the viewer does).
+fn srgb8(v: f32) -> u8 {
+    static TABLE: std::sync::OnceLock<Vec<u8>> = std::sync::OnceLock::new();
+    let table = TABLE.get_or_init(|| {
+        (0..SRGB_TABLE_SIZE)
+            .map(|i| {
+                let u = i as f32 / (SRGB_TABLE_SIZE - 1) as f32;
+                (encode_srgb(u * u) * 255.0 + 0.5) as u8
+            })
+            .collect()
+    });
+    let u = v.clamp(0.0, 1.0).sqrt();
+    table[(u * (SRGB_TABLE_SIZE - 1) as f32 + 0.5) as usize]
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn table_matches_the_formula_within_one_level() {
+        for i in 0..=10_000 {
+            let v = i as f32 / 10_000.0;
+            let exact = (super::encode_srgb(v) * 255.0 + 0.5) as i32;
+            assert!((super::srgb8(v) as i32 - exact).abs() <= 1, "{v}");
+        }
+    }
 }
 
 fn encode_srgb(v: f32) -> f32 {

@@ -167,6 +167,9 @@ impl Distribution1D {
         if self.is_empty() {
             return None;
         }
+        if self.cdf.len() == 1 {
+            return Some((0, 1.0, u));
+        }
         let target = u * self.total;
         let i = self
             .cdf

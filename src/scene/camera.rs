@@ -18,10 +18,30 @@ pub struct Camera {
 }
 
 /// The camera's orthonormal basis: right, true up, and forward (towards the target).
+#[derive(Clone, Copy, Debug)]
 struct Basis {
     right: Vec3,
     up: Vec3,
     forward: Vec3,
+}
+
+/// Primary rays for one image size, with the camera's basis computed once.
+#[derive(Clone, Copy, Debug)]
+pub struct RayGenerator {
+    eye: Vec3,
+    forward: Vec3,
+    /// Right and up, scaled to the image plane at unit distance.
+    right: Vec3,
+    up: Vec3,
+}
+
+impl RayGenerator {
+    /// The ray through `ndc` (in [0, 1]², origin top-left): origin and unit direction.
+    #[inline]
+    pub fn ray(&self, ndc: Vec2) -> (Vec3, Vec3) {
+        let d = self.forward + (2.0 * ndc.x - 1.0) * self.right + (1.0 - 2.0 * ndc.y) * self.up;
+        (self.eye, d.normalize())
+    }
 }
 
 impl Camera {
@@ -73,14 +93,22 @@ impl Camera {
         }
     }
 
+    /// Primary rays for an image of aspect `aspect` (width over height).
+    pub fn rays(&self, aspect: f32) -> RayGenerator {
+        let b = self.basis();
+        let tan_half = (0.5 * self.yfov).tan();
+        RayGenerator {
+            eye: self.eye,
+            forward: b.forward,
+            right: b.right * (tan_half * aspect),
+            up: b.up * tan_half,
+        }
+    }
+
     /// The primary ray through `ndc` (in [0, 1]², origin top-left) for an image of aspect
     /// `aspect`: origin and unit direction.
     pub fn ray(&self, ndc: Vec2, aspect: f32) -> (Vec3, Vec3) {
-        let b = self.basis();
-        let tan_half = (0.5 * self.yfov).tan();
-        let sx = (2.0 * ndc.x - 1.0) * tan_half * aspect;
-        let sy = (1.0 - 2.0 * ndc.y) * tan_half;
-        (self.eye, (b.forward + sx * b.right + sy * b.up).normalize())
+        self.rays(aspect).ray(ndc)
     }
 
     /// Where the point `p` lands in normalised image coordinates, if it is in front of the camera.
