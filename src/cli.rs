@@ -27,10 +27,7 @@ pub struct Cli {
 #[derive(Subcommand, Debug)]
 pub enum Command {
     /// Open the viewer (the default) on a built-in scene or a .gltf/.glb file.
-    View {
-        /// Built-in name (lampshade, fig8a, fig8b, fig8c) or a file path.
-        scene: Option<String>,
-    },
+    View(ViewArgs),
     /// Render an image headless.
     Render(RenderArgs),
     /// Write a built-in scene as .glb, with the portal conventions.
@@ -44,6 +41,24 @@ pub enum Command {
     Bench(BenchArgs),
     /// Render strategies for equal time and measure their error against a converged reference.
     Compare(CompareArgs),
+}
+
+#[derive(Args, Debug, Clone, Default)]
+pub struct ViewArgs {
+    /// Built-in name (lampshade, fig8a, fig8b, fig8c) or a .gltf/.glb path.
+    pub scene: Option<String>,
+    /// Start with this strategy (else the one used last).
+    #[arg(long, value_enum)]
+    pub strategy: Option<Strategy>,
+    /// Start with this overlay over the image.
+    #[arg(long, value_enum)]
+    pub overlay: Option<crate::app::overlay::OverlayKind>,
+    /// Draw the edges of the antishadow volumes.
+    #[arg(long)]
+    pub volumes: bool,
+    /// Path vertices after the camera (else the value used last).
+    #[arg(long)]
+    pub max_depth: Option<u32>,
 }
 
 #[derive(Args, Debug, Clone)]
@@ -147,7 +162,7 @@ pub struct CompareArgs {
 
 pub fn run(command: Command) -> Result<()> {
     match command {
-        Command::View { scene } => crate::app::run_viewer(scene),
+        Command::View(args) => crate::app::run_viewer(args),
         Command::Render(args) => render(&args),
         Command::Export { scene, out } => export(&scene, &out),
         Command::Bench(args) if args.ui => crate::bench::run_ui(&args),

@@ -840,7 +840,7 @@ impl eframe::App for PortalViewApp {
 }
 
 /// Opens the viewer window (blocks until it closes).
-pub fn run_viewer(scene: Option<String>) -> Result<()> {
+pub fn run_viewer(args: crate::cli::ViewArgs) -> Result<()> {
     let options = eframe::NativeOptions {
         viewport: egui::ViewportBuilder::default()
             .with_title("portalview")
@@ -851,8 +851,13 @@ pub fn run_viewer(scene: Option<String>) -> Result<()> {
     eframe::run_native(
         "portalview",
         options,
-        Box::new(|cc| {
-            let app = PortalViewApp::new(&cc.egui_ctx, cc.storage, scene)?;
+        Box::new(move |cc| {
+            let mut app = PortalViewApp::new(&cc.egui_ctx, cc.storage, args.scene)?;
+            let s = &mut app.settings;
+            s.strategy = args.strategy.unwrap_or(s.strategy);
+            s.overlay = args.overlay.unwrap_or(s.overlay);
+            s.max_depth = args.max_depth.unwrap_or(s.max_depth).max(1);
+            s.show_volumes |= args.volumes;
             Ok(Box::new(app))
         }),
     )

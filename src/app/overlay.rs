@@ -9,7 +9,7 @@ use crate::light::antishadow::Region;
 use crate::render::primary::PrimaryBuffer;
 
 /// Which overlay is drawn over the render.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
 pub enum OverlayKind {
     #[default]
     None,

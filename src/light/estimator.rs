@@ -161,38 +161,44 @@ impl LightSampler {
         if !ctx.has_portals {
             return;
         }
+        // Classify first, then build each term once, in place: a term holds a large
+        // spherical polygon, so it is not moved around afterwards.
+        let mut candidates: ArrayVec<(usize, Region, Technique), MAX_TERMS> = ArrayVec::new();
         for &j in &self.portals_of[light] {
-            let portal = &scene.portals[j];
-            let region = portal.planes.classify(x);
+            let region = scene.portals[j].planes.classify(x);
             if region == Region::Behind {
                 continue;
             }
             ctx.uses_portals = true;
             ctx.region = Region::Outside;
-            let Some(technique) = self.strategy.technique(region) else {
-                continue;
-            };
-            ctx.terms.push(PortalTerm {
-                portal: j,
-                region,
-                technique,
-                weight: 1.0,
-                projection: None,
-            });
+            if let Some(technique) = self.strategy.technique(region) {
+                candidates.push((j, region, technique));
+            }
         }
         // Weights by the light's solid angle through each portal; one term needs none.
-        let several = ctx.terms.len() > 1;
-        for term in ctx.terms.iter_mut() {
-            if several || term.technique == Technique::Projection {
-                term.projection = projection(&scene.portals[term.portal], x);
-            }
-            if several {
-                term.weight = term.projection.as_ref().map_or(0.0, |q| q.solid_angle());
+        let several = candidates.len() > 1;
+        for (j, region, technique) in candidates {
+            let projection = if several || technique == Technique::Projection {
+                projection(&scene.portals[j], x)
+            } else {
+                None
+            };
+            let weight = match (&projection, several) {
+                (_, false) => 1.0,
+                (Some(q), true) => q.solid_angle(),
+                (None, true) => 0.0,
+            };
+            let usable = technique != Technique::Projection || projection.is_some();
+            if weight > 0.0 && usable {
+                ctx.terms.push(PortalTerm {
+                    portal: j,
+                    region,
+                    technique,
+                    weight,
+                    projection,
+                });
             }
         }
-        ctx.terms.retain(|t| {
-            t.weight > 0.0 && (t.technique != Technique::Projection || t.projection.is_some())
-        });
         let total: f32 = ctx.terms.iter().map(|t| t.weight).sum();
         for term in ctx.terms.iter_mut() {
             term.weight /= total;

@@ -334,19 +334,25 @@ pub fn polygon_area(vertices: &[Vec3]) -> f32 {
 /// Sutherland–Hodgman against one plane: keeps the part with `signed_distance >= 0`.
 pub fn clip_by_plane(vertices: &[Vec3], plane: Plane) -> Verts {
     let mut out = Verts::new();
+    clip_by_plane_into(vertices, plane, &mut out);
+    out
+}
+
+/// [`clip_by_plane`] into a reused buffer.
+fn clip_by_plane_into(vertices: &[Vec3], plane: Plane, out: &mut Verts) {
+    out.clear();
     let n = vertices.len();
     for i in 0..n {
         let (a, b) = (vertices[i], vertices[(i + 1) % n]);
         let (da, db) = (plane.signed_distance(a), plane.signed_distance(b));
         if da >= 0.0 {
-            push(&mut out, a);
+            push(out, a);
         }
         if (da >= 0.0) != (db >= 0.0) {
             let t = da / (da - db);
-            push(&mut out, a + t * (b - a));
+            push(out, a + t * (b - a));
         }
     }
-    out
 }
 
 fn push(out: &mut Verts, p: Vec3) {
@@ -357,23 +363,31 @@ fn push(out: &mut Verts, p: Vec3) {
 
 /// Clips `subject` (coplanar with `clip`) to the inside of the convex polygon `clip`.
 pub fn clip_convex(subject: &[Vec3], clip: &ConvexPolygon) -> Verts {
-    let mut out: Verts = subject.iter().copied().collect();
+    // Two buffers in turn, so that no clip copies a whole vertex array.
+    let mut buffers = [subject.iter().copied().collect::<Verts>(), Verts::new()];
+    let mut current = 0;
     for (a, b) in clip.edges() {
-        if out.len() < 3 {
-            out.clear();
+        if buffers[current].len() < 3 {
+            buffers[current].clear();
             break;
         }
         // For counter-clockwise vertices, `normal × edge` points into the polygon.
         let inward = clip.normal().cross(b - a);
-        out = clip_by_plane(
-            &out,
-            Plane {
-                n: inward,
-                d: inward.dot(a),
-            },
-        );
+        let plane = Plane {
+            n: inward,
+            d: inward.dot(a),
+        };
+        let [first, second] = &mut buffers;
+        let (src, dst) = if current == 0 {
+            (first, second)
+        } else {
+            (second, first)
+        };
+        clip_by_plane_into(src, plane, dst);
+        current = 1 - current;
     }
-    out
+    let [first, second] = buffers;
+    if current == 0 { first } else { second }
 }
 
 /// Andrew's monotone chain; counter-clockwise, without collinear points.
