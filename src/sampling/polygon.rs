@@ -83,6 +83,10 @@ pub struct ConvexPolygon {
     normal: Vec3,
     area: f32,
     centroid: Vec3,
+    /// The supporting plane, oriented by `normal` (ray tests use it per sample).
+    plane: Plane,
+    /// Cumulative areas of the fan triangles `(v0, v_i, v_{i+1})`, for area sampling.
+    fan_cdf: ArrayVec<f32, MAX_POLYGON_VERTICES>,
 }
 
 impl ConvexPolygon {
@@ -152,11 +156,14 @@ impl ConvexPolygon {
             }
         }
         let centroid = area_centroid(&vertices, normal);
+        let fan_cdf = fan_cdf(&vertices);
         Ok(ConvexPolygon {
             vertices,
             normal,
             area,
             centroid,
+            plane: Plane::from_point_normal(centroid, normal),
+            fan_cdf,
         })
     }
 
@@ -226,7 +233,7 @@ impl ConvexPolygon {
         self.centroid
     }
     pub fn plane(&self) -> Plane {
-        Plane::from_point_normal(self.centroid, self.normal)
+        self.plane
     }
 
     /// The same polygon seen from the other side (reversed winding, negated normal).
@@ -234,9 +241,12 @@ impl ConvexPolygon {
         let mut vertices = self.vertices.clone();
         vertices.reverse();
         ConvexPolygon {
+            fan_cdf: fan_cdf(&vertices),
             vertices,
             normal: -self.normal,
-            ..*self
+            plane: self.plane.flipped(),
+            area: self.area,
+            centroid: self.centroid,
         }
     }
 
@@ -246,9 +256,21 @@ impl ConvexPolygon {
         (0..n).map(move |i| (self.vertices[i], self.vertices[(i + 1) % n]))
     }
 
-    /// A uniformly distributed point on the polygon (pdf `1 / area`).
+    /// A uniformly distributed point on the polygon (pdf `1 / area`): a fan triangle by area
+    /// from the precomputed table, `u.x` reused inside it.
     pub fn sample_uniform(&self, u: Vec2) -> Vec3 {
-        sample_polygon_area(&self.vertices, u)
+        let v = &self.vertices;
+        let total = self.fan_cdf.last().copied().unwrap_or(0.0);
+        let target = u.x * total;
+        let i = self
+            .fan_cdf
+            .partition_point(|&c| c <= target)
+            .min(self.fan_cdf.len().saturating_sub(1));
+        let lo = if i == 0 { 0.0 } else { self.fan_cdf[i - 1] };
+        let a = self.fan_cdf[i] - lo;
+        let ux = if a > 0.0 { ((target - lo) / a).clamp(0.0, 1.0) } else { 0.5 };
+        let b = super::sample_uniform_triangle(Vec2::new(ux, u.y));
+        b.x * v[0] + b.y * v[i + 1] + (1.0 - b.x - b.y) * v[i + 2]
     }
 
     /// Where the ray `o + t·dir` (any side) hits the polygon, if at `t > 0`.
@@ -262,6 +284,19 @@ impl ConvexPolygon {
         self.edges()
             .all(|(a, b)| (b - a).cross(p - a).dot(self.normal) >= 0.0)
     }
+}
+
+/// Cumulative fan-triangle areas of a convex polygon (one entry per triangle).
+fn fan_cdf(vertices: &[Vec3]) -> ArrayVec<f32, MAX_POLYGON_VERTICES> {
+    let v0 = vertices[0];
+    let mut total = 0.0;
+    vertices[1..]
+        .windows(2)
+        .map(|w| {
+            total += 0.5 * (w[0] - v0).cross(w[1] - v0).length();
+            total
+        })
+        .collect()
 }
 
 /// The largest distance between two of `points` (a scale for tolerances).
