@@ -57,14 +57,24 @@ pub struct Integrator<'a> {
     scene: &'a Scene,
     lights: LightSampler,
     settings: RenderSettings,
+    /// Every light is one polygon, and there are few: the last bounce can find the light it
+    /// reaches by intersecting the polygons and tracing one occlusion ray, instead of a
+    /// closest-hit ray through the whole scene.
+    polygon_lights: bool,
 }
+
+/// Up to this many polygon lights, the last bounce intersects them directly.
+const DIRECT_LIGHT_TEST_LIMIT: usize = 16;
 
 impl<'a> Integrator<'a> {
     pub fn new(scene: &'a Scene, settings: RenderSettings) -> Self {
+        let lights = &scene.geometry.lights;
         Integrator {
             scene,
             lights: LightSampler::new(scene, settings.strategy, settings.alpha),
             settings,
+            polygon_lights: lights.len() <= DIRECT_LIGHT_TEST_LIMIT
+                && lights.iter().all(|l| l.polygon.is_some()),
         }
     }
 
@@ -96,6 +106,19 @@ impl<'a> Integrator<'a> {
         let mut previous: Option<(Vec3, bool, f32)> = None;
         stats.camera_rays += 1;
         for depth in 0..=self.settings.max_depth {
+            // At the last vertex only emission matters: with polygon lights, test them directly.
+            if depth == self.settings.max_depth && self.polygon_lights {
+                let prev = previous.map(|(x, picked, bsdf_pdf)| Previous {
+                    x,
+                    ctx: picked.then(|| &contexts[(depth as usize + 1) % 2]),
+                    bsdf_pdf,
+                });
+                l += beta * self.emission_along(o, d, prev.as_ref(), stats);
+                break;
+            }
+            if depth > 0 {
+                stats.bounce_rays += 1;
+            }
             let Some(hit) = geometry.bvh.closest_hit(o, d, 0.0, f32::INFINITY) else {
                 break;
             };
@@ -163,9 +186,48 @@ impl<'a> Integrator<'a> {
             previous = Some((shading.x, picked, bs.pdf));
             o = shading.x;
             d = wi;
-            stats.bounce_rays += 1;
         }
         l
+    }
+
+    /// Emitted radiance reaching `o` from direction `-d` when the first surface along `d` is a
+    /// light, MIS-weighted against the light technique of the previous vertex (if any). Only
+    /// for scenes whose lights are all polygons: the nearest light polygon along the ray is
+    /// found directly, and one occlusion ray checks that nothing lies before it.
+    fn emission_along(&self, o: Vec3, d: Vec3, prev: Option<&Previous>, stats: &mut Stats) -> Vec3 {
+        let geometry = &*self.scene.geometry;
+        let nearest = geometry
+            .lights
+            .iter()
+            .enumerate()
+            .filter_map(|(i, l)| Some((i, l.polygon.as_ref()?.intersect(o, d)?)))
+            .min_by(|a, b| a.1.total_cmp(&b.1));
+        let Some((light, t)) = nearest else {
+            return Vec3::ZERO;
+        };
+        let Some(polygon) = &geometry.lights[light].polygon else {
+            return Vec3::ZERO;
+        };
+        let le = geometry.lights[light].emitted(polygon.normal(), -d);
+        if le == Vec3::ZERO {
+            return Vec3::ZERO;
+        }
+        stats.shadow_rays += 1;
+        // Stop short of the light so that its own triangles do not occlude it.
+        if geometry.bvh.occluded(o, d, 0.0, t * (1.0 - 1e-4) - 1e-5) {
+            return Vec3::ZERO;
+        }
+        match prev {
+            None => le,
+            Some(prev) => {
+                let y = LightPoint {
+                    p: o + t * d,
+                    n: polygon.normal(),
+                };
+                let light_pdf = self.light_pdf(prev, light, d, y, t);
+                le * power_heuristic(prev.bsdf_pdf, light_pdf)
+            }
+        }
     }
 
     /// The shading frame on the side the ray came from, or `None` where the shading normal

@@ -19,7 +19,10 @@ pub struct Stats {
     /// Light samples that drew nothing (the portal share at a point outside every antishadow).
     pub empty_samples: u64,
     pub camera_rays: u64,
+    /// Closest-hit rays after the camera's.
     pub bounce_rays: u64,
+    /// Occlusion rays: light samples' shadow rays, and the visibility tests of last-bounce
+    /// directions that reach a light (see `Integrator::emission_along`).
     pub shadow_rays: u64,
     /// Time spent building contexts and drawing light samples, estimated from a timed
     /// subsample of shading points (one in `TIMING_STRIDE`).
