@@ -86,6 +86,9 @@ enum Command {
     PortalEdited,
 }
 
+/// What the legend's shares were computed for: (frame generation, portal or all).
+type LegendKey = (u64, Option<usize>);
+
 /// How many recent files are remembered.
 const RECENT: usize = 8;
 
@@ -105,8 +108,8 @@ pub struct PortalViewApp {
     overlay_texture: Option<TextureHandle>,
     /// What the overlay texture shows: (generation, kind, portal, opacity).
     overlay_key: Option<(u64, OverlayKind, Option<usize>, u32)>,
-    /// The legend's pixel shares per region, for (generation, portal).
-    legend: Option<((u64, Option<usize>), [f32; 5])>,
+    /// The legend's pixel shares per region, and the (generation, portal) they are for.
+    legend: Option<(LegendKey, [f32; 5])>,
     /// The frame on screen, kept to re-tone-map when exposure changes.
     frame: Option<Frame>,
     /// Which portal the region overlay shows (`None`: all).

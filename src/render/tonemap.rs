@@ -30,18 +30,6 @@ fn srgb8(v: f32) -> u8 {
     table[(u * (SRGB_TABLE_SIZE - 1) as f32 + 0.5) as usize]
 }
 
-#[cfg(test)]
-mod tests {
-    #[test]
-    fn table_matches_the_formula_within_one_level() {
-        for i in 0..=10_000 {
-            let v = i as f32 / 10_000.0;
-            let exact = (super::encode_srgb(v) * 255.0 + 0.5) as i32;
-            assert!((super::srgb8(v) as i32 - exact).abs() <= 1, "{v}");
-        }
-    }
-}
-
 fn encode_srgb(v: f32) -> f32 {
     if v <= 0.003_130_8 {
         12.92 * v
@@ -142,4 +130,16 @@ pub fn temporary_sibling(path: &Path) -> std::path::PathBuf {
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_default();
     path.with_file_name(format!(".{name}.tmp"))
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn table_matches_the_formula_within_one_level() {
+        for i in 0..=10_000 {
+            let v = i as f32 / 10_000.0;
+            let exact = (super::encode_srgb(v) * 255.0 + 0.5) as i32;
+            assert!((super::srgb8(v) as i32 - exact).abs() <= 1, "{v}");
+        }
+    }
 }
