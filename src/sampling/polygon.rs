@@ -268,7 +268,11 @@ impl ConvexPolygon {
             .min(self.fan_cdf.len().saturating_sub(1));
         let lo = if i == 0 { 0.0 } else { self.fan_cdf[i - 1] };
         let a = self.fan_cdf[i] - lo;
-        let ux = if a > 0.0 { ((target - lo) / a).clamp(0.0, 1.0) } else { 0.5 };
+        let ux = if a > 0.0 {
+            ((target - lo) / a).clamp(0.0, 1.0)
+        } else {
+            0.5
+        };
         let b = super::sample_uniform_triangle(Vec2::new(ux, u.y));
         b.x * v[0] + b.y * v[i + 1] + (1.0 - b.x - b.y) * v[i + 2]
     }
