@@ -43,26 +43,8 @@ impl Builder {
         self.desc.materials.len() - 1
     }
 
-    /// Flat-shaded polygons (each a convex fan, counter-clockwise seen from its front) as one
-    /// mesh node.
     fn flat(&mut self, node: &str, material: usize, polygons: &[Vec<Vec3>]) {
-        let mut mesh = MeshDesc {
-            node_name: node.to_owned(),
-            material,
-            positions: Vec::new(),
-            normals: Vec::new(),
-            indices: Vec::new(),
-        };
-        for poly in polygons {
-            let base = mesh.positions.len() as u32;
-            let n = (poly[1] - poly[0]).cross(poly[2] - poly[0]).normalize();
-            mesh.positions.extend(poly);
-            mesh.normals.extend(std::iter::repeat_n(n, poly.len()));
-            for i in 1..poly.len() as u32 - 1 {
-                mesh.indices.push([base, base + i, base + i + 1]);
-            }
-        }
-        self.desc.meshes.push(mesh);
+        self.desc.meshes.push(flat_mesh(node, material, polygons));
     }
 
     /// An axis-aligned box with outward faces.
@@ -119,6 +101,28 @@ fn rect_y(cx: f32, cz: f32, hx: f32, hz: f32, y: f32, up: bool) -> Vec<Vec3> {
         Vec3::new(cx + hx, y, cz - hz),
     ];
     if up { v } else { v.into_iter().rev().collect() }
+}
+
+/// Flat-shaded convex polygons (each counter-clockwise seen from its front, fanned into
+/// triangles) as one mesh node.
+pub fn flat_mesh(node: &str, material: usize, polygons: &[Vec<Vec3>]) -> MeshDesc {
+    let mut mesh = MeshDesc {
+        node_name: node.to_owned(),
+        material,
+        positions: Vec::new(),
+        normals: Vec::new(),
+        indices: Vec::new(),
+    };
+    for poly in polygons {
+        let base = mesh.positions.len() as u32;
+        let n = (poly[1] - poly[0]).cross(poly[2] - poly[0]).normalize();
+        mesh.positions.extend(poly);
+        mesh.normals.extend(std::iter::repeat_n(n, poly.len()));
+        for i in 1..poly.len() as u32 - 1 {
+            mesh.indices.push([base, base + i, base + i + 1]);
+        }
+    }
+    mesh
 }
 
 #[derive(Clone, Copy)]

@@ -2,28 +2,9 @@
 #![allow(dead_code)]
 
 use glam::{Mat4, Vec3};
-use portalview::scene::desc::{CameraDesc, MaterialDesc, MeshDesc, PortalDesc, SceneDesc};
+use portalview::scene::desc::{CameraDesc, MaterialDesc, PortalDesc, SceneDesc};
 
-/// A flat-shaded mesh node from convex polygons (counter-clockwise seen from the front).
-pub fn flat(node: &str, material: usize, polygons: &[Vec<Vec3>]) -> MeshDesc {
-    let mut mesh = MeshDesc {
-        node_name: node.to_owned(),
-        material,
-        positions: vec![],
-        normals: vec![],
-        indices: vec![],
-    };
-    for poly in polygons {
-        let base = mesh.positions.len() as u32;
-        let n = (poly[1] - poly[0]).cross(poly[2] - poly[0]).normalize();
-        mesh.positions.extend(poly);
-        mesh.normals.extend(std::iter::repeat_n(n, poly.len()));
-        for i in 1..poly.len() as u32 - 1 {
-            mesh.indices.push([base, base + i, base + i + 1]);
-        }
-    }
-    mesh
-}
+pub use portalview::scene::builtin::flat_mesh as flat;
 
 /// A portal from a convex polygon given in world space.
 pub fn portal(name: &str, target: &str, alpha: f32, corners: &[Vec3]) -> PortalDesc {
