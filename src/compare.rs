@@ -461,43 +461,70 @@ pub fn cached_reference(
     budget: ReferenceBudget,
     progress: &ProgressBar,
 ) -> Result<Reference> {
-    let key = cache_key(scene, image);
-    let exr = cache_dir.join(format!("{key}.exr"));
-    let json = sidecar_path(&exr);
-    // An unreadable or unsuitable entry is a miss: it is rendered again and replaced.
-    let cached = read_sidecar(&json).ok().filter(|info| {
-        info.key == key
-            && (info.width, info.height) == (image.width, image.height)
-            && info.seed != compare_seed
-            && info.covers(budget)
-    });
-    if let Some(info) = cached
-        && let Ok((w, h, pixels)) = tonemap::read_exr(&exr)
-        && (w, h) == (image.width, image.height)
-    {
-        return Ok(Reference {
-            width: w,
-            height: h,
-            pixels,
-            info: Some(info),
-            origin: ReferenceOrigin::Cached(exr),
-        });
+    if let Some(reference) = find_cached_reference(cache_dir, scene, image, compare_seed, budget) {
+        return Ok(reference);
     }
     let never = AtomicBool::new(false);
     let Ok(mut reference) = render_reference(scene, image, compare_seed, budget, &never, progress)
     else {
-        anyhow::bail!("{}: the reference render was cancelled", exr.display());
+        anyhow::bail!(
+            "{}: the reference render was cancelled",
+            cache_dir.display()
+        );
     };
+    store_reference(cache_dir, &mut reference)?;
+    Ok(reference)
+}
+
+/// The cached reference for `scene` at `image` in `cache_dir`, if one there covers `budget`
+/// and its seed differs from `compare_seed`. An unreadable or unsuitable entry is a miss.
+pub fn find_cached_reference(
+    cache_dir: &Path,
+    scene: &Scene,
+    image: ImageSpec,
+    compare_seed: u64,
+    budget: ReferenceBudget,
+) -> Option<Reference> {
+    let key = cache_key(scene, image);
+    let exr = cache_dir.join(format!("{key}.exr"));
+    let info = read_sidecar(&sidecar_path(&exr)).ok().filter(|info| {
+        info.key == key
+            && (info.width, info.height) == (image.width, image.height)
+            && info.seed != compare_seed
+            && info.covers(budget)
+    })?;
+    let (w, h, pixels) = tonemap::read_exr(&exr).ok()?;
+    ((w, h) == (image.width, image.height)).then_some(Reference {
+        width: w,
+        height: h,
+        pixels,
+        info: Some(info),
+        origin: ReferenceOrigin::Cached(exr),
+    })
+}
+
+/// Stores a rendered reference in `cache_dir` (created if needed) as `<key>.exr` and
+/// `<key>.json`, replacing any entry of that key, and sets its origin to the stored file.
+pub fn store_reference(cache_dir: &Path, reference: &mut Reference) -> Result<()> {
+    let Some(info) = &reference.info else {
+        anyhow::bail!("a reference without its information cannot be cached");
+    };
+    let exr = cache_dir.join(format!("{}.exr", info.key));
+    let json = sidecar_path(&exr);
     std::fs::create_dir_all(cache_dir)
         .with_context(|| format!("{}: cannot create the cache folder", cache_dir.display()))?;
-    tonemap::write_image(&exr, image.width, image.height, &reference.pixels, 0.0)?;
-    if let Some(info) = &reference.info {
-        let text = serde_json::to_string_pretty(info)
-            .with_context(|| format!("{}: cannot encode", json.display()))?;
-        write_atomic(&json, text.as_bytes())?;
-    }
+    tonemap::write_image(
+        &exr,
+        reference.width,
+        reference.height,
+        &reference.pixels,
+        0.0,
+    )?;
+    let text = serde_json::to_string_pretty(info)
+        .with_context(|| format!("{}: cannot encode", json.display()))?;
+    write_atomic(&json, text.as_bytes())?;
     reference.origin = ReferenceOrigin::Rendered(Some(exr));
-    Ok(reference)
+    Ok(())
 }
 
 /// One strategy's render in an [`EqualTime`] comparison.

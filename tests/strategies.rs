@@ -453,3 +453,27 @@ fn classifier_matches_brute_force_on_builtin_scenes() {
         }
     }
 }
+
+/// The overlay's debug mode classifies by brute force; on every built-in scene it agrees with
+/// the planes on all but a sliver of pixels (those within a hair of a plane).
+#[test]
+fn overlay_debug_mode_agrees_with_the_planes() {
+    use portalview::render::primary::PrimaryBuffer;
+    for name in builtin::NAMES {
+        let scene = Scene::open(name).unwrap();
+        let planes = PrimaryBuffer::compute(&scene, 64, 48, false);
+        let brute = PrimaryBuffer::compute(&scene, 64, 48, true);
+        let differing = planes
+            .regions
+            .iter()
+            .zip(&brute.regions)
+            .filter(|(a, b)| a != b)
+            .count();
+        assert!(
+            differing * 200 <= planes.regions.len(),
+            "{name}: {differing} of {} pixel regions differ",
+            planes.regions.len()
+        );
+        assert!(planes.regions.iter().any(|r| r.is_some()));
+    }
+}

@@ -2,6 +2,7 @@
 //! overlays, and portal editing. The app owns UI state only; rendering happens on the worker,
 //! reached through one [`RenderHandle`] that the UI never waits on.
 
+pub mod compare_view;
 pub mod edit;
 pub mod overlay;
 mod viewport;
@@ -21,6 +22,7 @@ use crate::render::tonemap;
 use crate::render::worker::{Frame, RenderHandle, RenderRequest};
 use crate::scene::camera::Camera;
 use crate::scene::{Scene, builtin, gltf_io};
+use compare_view::{CompareView, CompareViewSettings};
 use edit::PortalEditor;
 use overlay::OverlayKind;
 
@@ -48,6 +50,10 @@ pub struct ViewerSettings {
     pub show_outlines: bool,
     /// Edges of the antishadow volumes over the image.
     pub show_volumes: bool,
+    /// Classify the overlay's regions with the brute-force classifier (debug).
+    pub brute_force_regions: bool,
+    /// The comparison mode's settings.
+    pub compare: CompareViewSettings,
 }
 
 impl Default for ViewerSettings {
@@ -67,13 +73,26 @@ impl Default for ViewerSettings {
             overlay_opacity: 0.5,
             show_outlines: true,
             show_volumes: false,
+            brute_force_regions: false,
+            compare: CompareViewSettings::default(),
         }
     }
+}
+
+/// What the window shows: the progressive render of one strategy, or the equal-time
+/// comparison of the strategies against a reference.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum ViewMode {
+    #[default]
+    Render,
+    Compare,
 }
 
 /// Actions collected while drawing a frame, applied at its end.
 #[must_use]
 enum Command {
+    /// Switch between the render and the comparison.
+    SetMode(ViewMode),
     Open(String),
     Restart,
     Undo,
@@ -130,6 +149,9 @@ pub struct PortalViewApp {
     /// Recent UI frame times (time spent in `ui`).
     frame_times: VecDeque<Duration>,
     gizmo: viewport::Gizmo,
+    /// Render or compare (not persisted: the viewer starts rendering).
+    mode: ViewMode,
+    compare: CompareView,
 }
 
 impl PortalViewApp {
@@ -178,6 +200,8 @@ impl PortalViewApp {
             first_frame_latency: None,
             frame_times: VecDeque::new(),
             gizmo: viewport::Gizmo::default(),
+            mode: ViewMode::Render,
+            compare: CompareView::default(),
         })
     }
 
@@ -201,6 +225,32 @@ impl PortalViewApp {
         &mut self.camera
     }
 
+    pub fn mode(&self) -> ViewMode {
+        self.mode
+    }
+
+    /// Switches mode. Comparing pauses the render and compares at the current scene and camera;
+    /// leaving stops the comparison and restarts the render.
+    pub fn set_mode(&mut self, mode: ViewMode) {
+        if mode == self.mode {
+            return;
+        }
+        self.mode = mode;
+        if mode == ViewMode::Render {
+            self.compare.stop();
+        }
+        self.restart();
+    }
+
+    pub fn compare_view(&self) -> &CompareView {
+        &self.compare
+    }
+
+    /// The comparison's state (tests set its cache folder, or pause it).
+    pub fn compare_view_mut(&mut self) -> &mut CompareView {
+        &mut self.compare
+    }
+
     fn render_settings(&self) -> RenderSettings {
         RenderSettings {
             strategy: self.settings.strategy,
@@ -210,10 +260,14 @@ impl PortalViewApp {
         }
     }
 
-    /// Restarts accumulation with the current scene, camera and settings.
+    /// Restarts accumulation with the current scene, camera and settings (while comparing:
+    /// hands them to the comparison, which restarts if they changed, and keeps the render paused).
     pub fn restart(&mut self) {
         let mut scene = self.rendered.clone();
         scene.camera = self.camera;
+        if self.mode == ViewMode::Compare {
+            self.compare.set_scene(scene.clone());
+        }
         let (width, height) = self.requested_size;
         if width == 0 || height == 0 {
             return;
@@ -223,7 +277,8 @@ impl PortalViewApp {
             settings: self.render_settings(),
             width,
             height,
-            paused: self.paused,
+            paused: self.paused || self.mode == ViewMode::Compare,
+            brute_force_regions: self.settings.brute_force_regions,
         });
         self.requested_at = Some((generation, Instant::now()));
     }
@@ -467,6 +522,13 @@ impl PortalViewApp {
                     ui.close();
                 }
             });
+            ui.separator();
+            let mut mode = self.mode;
+            ui.selectable_value(&mut mode, ViewMode::Render, "Render");
+            ui.selectable_value(&mut mode, ViewMode::Compare, "Compare");
+            if mode != self.mode {
+                commands.push(Command::SetMode(mode));
+            }
             if let Some((name, _)) = &self.loading {
                 ui.spinner();
                 ui.label(format!("loading {name}…"));
@@ -570,6 +632,13 @@ impl PortalViewApp {
         ui.add(egui::Slider::new(&mut settings.overlay_opacity, 0.0..=1.0).text("opacity"));
         ui.checkbox(&mut settings.show_outlines, "portal and light outlines");
         ui.checkbox(&mut settings.show_volumes, "antishadow volume edges");
+        if ui
+            .checkbox(&mut settings.brute_force_regions, "brute-force classifier (debug)")
+            .on_hover_text("Regions from projecting the light through each point onto the portal plane, instead of the precomputed planes")
+            .changed()
+        {
+            self.requested_size = (0, 0);
+        }
         // The legend: colours and the share of pixels in each region.
         let shares = self.frame.as_ref().and_then(|f| {
             let key = (f.generation, self.overlay_portal);
@@ -651,6 +720,10 @@ impl PortalViewApp {
     }
 
     fn status_bar(&self, ui: &mut egui::Ui) {
+        if self.mode == ViewMode::Compare {
+            ui.horizontal(|ui| self.compare.status(ui));
+            return;
+        }
         ui.horizontal(|ui| {
             match &self.frame {
                 Some(f) => {
@@ -725,6 +798,7 @@ impl PortalViewApp {
         let mut edited = false;
         for command in commands {
             match command {
+                Command::SetMode(mode) => self.set_mode(mode),
                 Command::Open(name) => self.open(name),
                 Command::Restart => restart = true,
                 Command::Undo => edited |= self.editor.undo(),
@@ -774,6 +848,30 @@ impl PortalViewApp {
         self.handle_keys(&ctx, &mut commands);
         egui::Panel::top("menu").show(ui, |ui| self.menu_bar(ui, &mut commands));
         egui::Panel::bottom("status").show(ui, |ui| self.status_bar(ui));
+        if self.mode == ViewMode::Compare {
+            let settings = &mut self.settings;
+            self.compare
+                .sync(&ctx, &settings.compare, settings.max_depth, settings.alpha);
+            self.compare.show(
+                ui,
+                &mut settings.compare,
+                &mut settings.exposure,
+                &mut self.message,
+            );
+        } else {
+            self.render_panels(ui, &mut commands);
+        }
+        self.apply(commands);
+        // Frames wake the UI through the worker's notify; this is only a slow heartbeat.
+        ctx.request_repaint_after(Duration::from_millis(500));
+        self.frame_times.push_back(start.elapsed());
+        if self.frame_times.len() > 120 {
+            self.frame_times.pop_front();
+        }
+    }
+
+    /// The render mode's panels: controls on the left, the image in the middle.
+    fn render_panels(&mut self, ui: &mut egui::Ui, commands: &mut Vec<Command>) {
         egui::Panel::left("controls")
             .resizable(true)
             .default_size(330.0)
@@ -789,26 +887,19 @@ impl PortalViewApp {
                     }
                     egui::CollapsingHeader::new("Render")
                         .default_open(true)
-                        .show(ui, |ui| self.render_controls(ui, &mut commands));
+                        .show(ui, |ui| self.render_controls(ui, commands));
                     egui::CollapsingHeader::new("Antishadow overlay")
                         .default_open(true)
                         .show(ui, |ui| self.overlay_controls(ui));
                     egui::CollapsingHeader::new("Portals")
                         .default_open(true)
-                        .show(ui, |ui| self.portal_panel(ui, &mut commands));
+                        .show(ui, |ui| self.portal_panel(ui, commands));
                     egui::CollapsingHeader::new("Statistics")
                         .default_open(false)
                         .show(ui, |ui| self.statistics(ui));
                 });
             });
-        egui::CentralPanel::default().show(ui, |ui| self.viewport(ui, &mut commands));
-        self.apply(commands);
-        // Frames wake the UI through the worker's notify; this is only a slow heartbeat.
-        ctx.request_repaint_after(Duration::from_millis(500));
-        self.frame_times.push_back(start.elapsed());
-        if self.frame_times.len() > 120 {
-            self.frame_times.pop_front();
-        }
+        egui::CentralPanel::default().show(ui, |ui| self.viewport(ui, commands));
     }
 }
 

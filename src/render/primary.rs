@@ -6,7 +6,7 @@ use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 
 use super::integrator::Integrator;
-use crate::light::antishadow::Region;
+use crate::light::antishadow::{Region, classify_brute_force};
 use crate::light::estimator::LightSampler;
 use crate::light::{Strategy, Technique};
 use crate::scene::Scene;
@@ -30,7 +30,10 @@ pub struct PrimaryBuffer {
 }
 
 impl PrimaryBuffer {
-    pub fn compute(scene: &Scene, width: u32, height: u32) -> PrimaryBuffer {
+    /// `brute_force` classifies each portal's regions with the independent brute-force
+    /// classifier instead of the precomputed planes (a debug view: slower, and the two must
+    /// agree except within a hair of the planes).
+    pub fn compute(scene: &Scene, width: u32, height: u32, brute_force: bool) -> PrimaryBuffer {
         let sampler = LightSampler::new(scene, Strategy::Antishadow, None);
         let portal_count = scene.portals.len();
         let aspect = width as f32 / height as f32;
@@ -41,7 +44,7 @@ impl PrimaryBuffer {
                     .map(|x| {
                         let ndc = (Vec2::new(x as f32, y as f32) + 0.5)
                             / Vec2::new(width as f32, height as f32);
-                        classify_ray(scene, &sampler, ndc, aspect)
+                        classify_ray(scene, &sampler, ndc, aspect, brute_force)
                     })
                     .collect()
             })
@@ -98,7 +101,13 @@ type PixelClass = (
     Option<Technique>,
 );
 
-fn classify_ray(scene: &Scene, sampler: &LightSampler, ndc: Vec2, aspect: f32) -> PixelClass {
+fn classify_ray(
+    scene: &Scene,
+    sampler: &LightSampler,
+    ndc: Vec2,
+    aspect: f32,
+    brute_force: bool,
+) -> PixelClass {
     let (o, d) = scene.camera.ray(ndc, aspect);
     let g = &scene.geometry;
     let Some(hit) = g.bvh.closest_hit(o, d, 0.0, f32::INFINITY) else {
@@ -109,11 +118,14 @@ fn classify_ray(scene: &Scene, sampler: &LightSampler, ndc: Vec2, aspect: f32) -
     let ng = tri.geometric_normal();
     // Classify where shading happens: just off the surface, on the camera's side.
     let x = Integrator::offset(p, if ng.dot(d) > 0.0 { -ng } else { ng });
-    let regions = scene
-        .portals
-        .iter()
-        .map(|portal| Some(portal.planes.classify(x)))
-        .collect();
+    let classify = |portal: &crate::light::portal::Portal| {
+        if brute_force {
+            classify_brute_force(&portal.polygon, &portal.light_polygon, x)
+        } else {
+            portal.planes.classify(x)
+        }
+    };
+    let regions: Vec<Option<Region>> = scene.portals.iter().map(|p| Some(classify(p))).collect();
     let mut best: Option<(f32, Region, Option<Technique>)> = None;
     for light in 0..g.lights.len() {
         let ctx = sampler.context(scene, light, x);

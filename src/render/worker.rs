@@ -25,6 +25,8 @@ pub struct RenderRequest {
     pub width: u32,
     pub height: u32,
     pub paused: bool,
+    /// Classify the overlay's regions by brute force (a debug view).
+    pub brute_force_regions: bool,
 }
 
 /// The newest image of a request.
@@ -233,7 +235,10 @@ impl Worker {
         let request = &job.request;
         if job.preview_done && job.primary.is_none() {
             let (scene, w, h) = (&request.scene, job.film.width, job.film.height);
-            let primary = self.pool.install(|| PrimaryBuffer::compute(scene, w, h));
+            let brute_force = request.brute_force_regions;
+            let primary = self
+                .pool
+                .install(|| PrimaryBuffer::compute(scene, w, h, brute_force));
             job.primary = Some(Arc::new(primary));
         }
         let request = &job.request;
