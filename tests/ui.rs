@@ -9,43 +9,13 @@ use portalview::app::PortalViewApp;
 use portalview::app::overlay::OverlayKind;
 use portalview::light::Strategy;
 use portalview::light::antishadow::Region;
-use std::time::{Duration, Instant};
+mod ui_common;
 
-/// UI tests run one at a time: each harness renders through llvmpipe and runs its own render
-/// worker, and on a small machine several at once starve each other's workers.
-static SERIAL: std::sync::Mutex<()> = std::sync::Mutex::new(());
+use ui_common::{harness_with, serial, step_until};
 
-fn serial() -> std::sync::MutexGuard<'static, ()> {
-    SERIAL.lock().unwrap_or_else(|e| e.into_inner())
-}
-
-/// One factory for the app under test.
+/// The viewer on `scene`, as built for every test here.
 fn harness(scene: &str) -> Harness<'static, PortalViewApp> {
-    let scene = scene.to_owned();
-    Harness::builder()
-        .with_size(egui::vec2(1100.0, 700.0))
-        .wgpu()
-        .build_eframe(move |cc| PortalViewApp::new(&cc.egui_ctx, None, Some(scene)).unwrap())
-}
-
-/// Steps the UI until `done` holds (the worker runs on its own thread), or fails with a
-/// screenshot of what the window showed.
-fn step_until(
-    h: &mut Harness<'static, PortalViewApp>,
-    what: &str,
-    done: impl Fn(&PortalViewApp) -> bool,
-) {
-    let start = Instant::now();
-    while !done(h.state()) {
-        if start.elapsed() > Duration::from_secs(60) {
-            if let Ok(image) = h.render() {
-                let _ = image.save(format!("target/ui-timeout-{}.png", what.replace(' ', "_")));
-            }
-            panic!("timed out waiting for {what}");
-        }
-        std::thread::sleep(Duration::from_millis(50));
-        h.step();
-    }
+    harness_with(scene, |_| {})
 }
 
 /// A full-resolution frame of the newest request, with its per-pixel classification.

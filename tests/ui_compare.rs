@@ -13,15 +13,11 @@ use portalview::compare::ReferenceOrigin;
 use portalview::light::Strategy;
 use portalview::render::compare_worker::{CompareFrame, ReferenceStatus};
 use std::path::PathBuf;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
-/// UI tests run one at a time: each harness renders through llvmpipe and runs its own render
-/// workers, and on a small machine several at once starve each other's workers.
-static SERIAL: std::sync::Mutex<()> = std::sync::Mutex::new(());
+mod ui_common;
 
-fn serial() -> std::sync::MutexGuard<'static, ()> {
-    SERIAL.lock().unwrap_or_else(|e| e.into_inner())
-}
+use ui_common::{harness_with, serial, step_until};
 
 /// A fresh, empty folder for the reference cache.
 fn temp_dir(name: &str) -> PathBuf {
@@ -34,40 +30,14 @@ fn temp_dir(name: &str) -> PathBuf {
     dir
 }
 
-/// One factory for the app under test: a tiny comparison whose references go to `cache`.
+/// The viewer on `scene` with a tiny comparison whose references go to `cache`.
 fn harness(scene: &str, cache: Option<PathBuf>) -> Harness<'static, PortalViewApp> {
-    let scene = scene.to_owned();
-    Harness::builder()
-        .with_size(egui::vec2(1100.0, 700.0))
-        .wgpu()
-        .build_eframe(move |cc| {
-            let mut app = PortalViewApp::new(&cc.egui_ctx, None, Some(scene)).unwrap();
-            let compare = &mut app.settings.compare;
-            compare.width = 32;
-            compare.reference_seconds = 0.3;
-            app.compare_view_mut().cache_dir = cache;
-            app
-        })
-}
-
-/// Steps the UI until `done` holds (the workers run on their own threads), or fails with a
-/// screenshot of what the window showed.
-fn step_until(
-    h: &mut Harness<'static, PortalViewApp>,
-    what: &str,
-    done: impl Fn(&PortalViewApp) -> bool,
-) {
-    let start = Instant::now();
-    while !done(h.state()) {
-        if start.elapsed() > Duration::from_secs(60) {
-            if let Ok(image) = h.render() {
-                let _ = image.save(format!("target/ui-timeout-{}.png", what.replace(' ', "_")));
-            }
-            panic!("timed out waiting for {what}");
-        }
-        std::thread::sleep(Duration::from_millis(30));
-        h.step();
-    }
+    harness_with(scene, move |app| {
+        let compare = &mut app.settings.compare;
+        compare.width = 32;
+        compare.reference_seconds = 0.3;
+        app.compare_view_mut().cache_dir = cache;
+    })
 }
 
 fn comparison(app: &PortalViewApp) -> Option<&CompareFrame> {

@@ -1,0 +1,51 @@
+//! What the viewer's UI test suites share: one lock, one app factory, and a way to wait for
+//! the background workers.
+#![allow(dead_code)]
+
+use egui_kittest::Harness;
+use portalview::app::PortalViewApp;
+use std::time::{Duration, Instant};
+
+/// UI tests run one at a time: each harness renders through llvmpipe and runs its own render
+/// worker, and on a small machine several at once starve each other's workers.
+static SERIAL: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
+pub fn serial() -> std::sync::MutexGuard<'static, ()> {
+    SERIAL.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// One factory for the app under test: `scene` opened in a 1100×700 window, then `setup`.
+pub fn harness_with(
+    scene: &str,
+    setup: impl FnOnce(&mut PortalViewApp) + 'static,
+) -> Harness<'static, PortalViewApp> {
+    let scene = scene.to_owned();
+    Harness::builder()
+        .with_size(egui::vec2(1100.0, 700.0))
+        .wgpu()
+        .build_eframe(move |cc| {
+            let mut app = PortalViewApp::new(&cc.egui_ctx, None, Some(scene)).unwrap();
+            setup(&mut app);
+            app
+        })
+}
+
+/// Steps the UI until `done` holds (the workers run on their own threads), or fails with a
+/// screenshot of what the window showed.
+pub fn step_until(
+    h: &mut Harness<'static, PortalViewApp>,
+    what: &str,
+    done: impl Fn(&PortalViewApp) -> bool,
+) {
+    let start = Instant::now();
+    while !done(h.state()) {
+        if start.elapsed() > Duration::from_secs(60) {
+            if let Ok(image) = h.render() {
+                let _ = image.save(format!("target/ui-timeout-{}.png", what.replace(' ', "_")));
+            }
+            panic!("timed out waiting for {what}");
+        }
+        std::thread::sleep(Duration::from_millis(30));
+        h.step();
+    }
+}
