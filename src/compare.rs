@@ -8,7 +8,7 @@
 //! to every measured MSE. That floor is reported beside the results, never subtracted.
 
 use anyhow::{Context, Result};
-use glam::Vec3;
+use glam::{DVec3, Vec3};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::{Deserialize, Serialize};
 use std::fmt::Write as _;
@@ -35,23 +35,7 @@ pub const RELMSE_EPSILON: f64 = 1e-2;
 /// # Panics
 /// If the lengths differ (a caller's bug: the sizes are checked where images are loaded).
 pub fn mse(image: &[Vec3], reference: &[Vec3]) -> f64 {
-    assert_eq!(
-        image.len(),
-        reference.len(),
-        "mse: images of different sizes"
-    );
-    if image.is_empty() {
-        return 0.0;
-    }
-    let sum: f64 = image
-        .iter()
-        .zip(reference)
-        .map(|(&x, &r)| {
-            let d = (x - r).as_dvec3();
-            d.dot(d)
-        })
-        .sum();
-    sum / (3 * image.len()) as f64
+    mean_channel_error(image, reference, |d, _| d * d)
 }
 
 /// Relative MSE: the mean over pixels and channels of `(x − r)² / (r² + ε)`, with
@@ -60,11 +44,16 @@ pub fn mse(image: &[Vec3], reference: &[Vec3]) -> f64 {
 /// # Panics
 /// If the lengths differ.
 pub fn relmse(image: &[Vec3], reference: &[Vec3]) -> f64 {
-    assert_eq!(
-        image.len(),
-        reference.len(),
-        "relmse: images of different sizes"
-    );
+    mean_channel_error(image, reference, |d, r| d * d / (r * r + RELMSE_EPSILON))
+}
+
+/// The mean over pixels and channels of `error(x − r, r)`, in f64.
+fn mean_channel_error(
+    image: &[Vec3],
+    reference: &[Vec3],
+    error: impl Fn(DVec3, DVec3) -> DVec3,
+) -> f64 {
+    assert_eq!(image.len(), reference.len(), "images of different sizes");
     if image.is_empty() {
         return 0.0;
     }
@@ -72,9 +61,8 @@ pub fn relmse(image: &[Vec3], reference: &[Vec3]) -> f64 {
         .iter()
         .zip(reference)
         .map(|(&x, &r)| {
-            let (x, r) = (x.as_dvec3(), r.as_dvec3());
-            let d = x - r;
-            let e = d * d / (r * r + RELMSE_EPSILON);
+            let r = r.as_dvec3();
+            let e = error(x.as_dvec3() - r, r);
             e.x + e.y + e.z
         })
         .sum();
