@@ -174,14 +174,7 @@ fn save_then_load_round_trips_the_portals() {
 #[test]
 fn snapshot_main_panels() {
     let _serial = serial();
-    let mut h = Harness::builder()
-        .with_size(egui::vec2(1100.0, 700.0))
-        .wgpu()
-        .build_eframe(|cc| {
-            let mut app = PortalViewApp::new(&cc.egui_ctx, None, Some("lampshade".into())).unwrap();
-            app.set_paused(true);
-            app
-        });
+    let mut h = harness_with("lampshade", |app| app.set_paused(true));
     h.run_steps(4);
     h.snapshot("main_window");
     h.state_mut().settings.overlay = OverlayKind::Techniques;

@@ -249,17 +249,12 @@ fn the_reference_shows_its_progress_and_follows_the_scene() {
 #[test]
 fn snapshot_compare_panel() {
     let _serial = serial();
-    let mut h = Harness::builder()
-        .with_size(egui::vec2(1100.0, 700.0))
-        .wgpu()
-        .build_eframe(|cc| {
-            let mut app = PortalViewApp::new(&cc.egui_ctx, None, Some("lampshade".into())).unwrap();
-            app.set_paused(true);
-            app.compare_view_mut().cache_dir = None;
-            app.compare_view_mut().set_paused(true);
-            app.set_mode(ViewMode::Compare);
-            app
-        });
+    let mut h = harness_with("lampshade", |app| {
+        app.set_paused(true);
+        app.compare_view_mut().cache_dir = None;
+        app.compare_view_mut().set_paused(true);
+        app.set_mode(ViewMode::Compare);
+    });
     h.run_steps(4);
     assert!(comparison(h.state()).is_none());
     h.snapshot("compare_panel");
