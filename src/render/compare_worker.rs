@@ -159,11 +159,7 @@ impl CompareHandle {
         let (tx, rx) = mpsc::channel();
         let shared = Arc::new(Mutex::new(Shared::default()));
         let cancel = Arc::new(AtomicBool::new(false));
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .thread_name(|i| format!("portalview-compare-{i}"))
-            .build()
-            .map_err(std::io::Error::other)?;
+        let pool = super::worker_pool(threads, "portalview-compare")?;
         let worker = Worker {
             rx,
             shared: shared.clone(),

@@ -17,6 +17,16 @@ use film::Film;
 use integrator::Integrator;
 use stats::Stats;
 
+/// The rayon pool a background worker renders with: `threads` named `{name}-{i}` (0 = every
+/// core), kept apart from the global pool so that a worker's passes never queue behind others.
+pub fn worker_pool(threads: usize, name: &'static str) -> std::io::Result<rayon::ThreadPool> {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .thread_name(move |i| format!("{name}-{i}"))
+        .build()
+        .map_err(std::io::Error::other)
+}
+
 /// Side of the square tiles that threads take.
 pub const TILE: u32 = 16;
 
