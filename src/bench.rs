@@ -2,67 +2,107 @@
 //! strategy, on the built-in scenes. Multithreaded like the renderer, so the rays/s compare.
 
 use anyhow::Result;
-use glam::{Vec2, Vec3};
+use glam::Vec3;
 use rayon::prelude::*;
+use std::cell::RefCell;
 use std::time::{Duration, Instant};
 
 use crate::cli::{BenchArgs, render_for};
 use crate::light::Strategy;
 use crate::render::integrator::{Integrator, RenderSettings};
-use crate::sampling::{Frame, Rng, sample_cosine_hemisphere};
+use crate::render::stats::Stats;
+use crate::render::{Tiles, render_tile};
+use crate::scene::bvh::{Bvh, Hit, Tracer};
 use crate::scene::{Scene, builtin};
 
-/// Rays for the raw measurement, of the kinds the renderer traces: the camera's primary rays
-/// and cosine-distributed bounce rays from their hits (closest hit), and shadow rays from the
-/// hits towards random points on the lights (occlusion).
-struct RaySet {
-    closest: Vec<(Vec3, Vec3)>,
-    shadow: Vec<(Vec3, Vec3, f32)>,
+/// One ray the renderer traced, kept to be replayed through the raw traversal.
+#[derive(Clone, Copy, Debug)]
+struct RecordedRay {
+    origin: Vec3,
+    dir: Vec3,
+    tmin: f32,
+    tmax: f32,
+    closest: bool,
 }
 
-fn ray_set(scene: &Scene, size: u32) -> RaySet {
-    let g = &scene.geometry;
-    let mut rng = Rng::new(1, 2);
-    let mut closest = Vec::new();
-    let mut shadow = Vec::new();
-    for y in 0..size {
-        for x in 0..size {
-            let ndc = (Vec2::new(x as f32, y as f32) + rng.uniform2()) / size as f32;
-            let (o, d) = scene.camera.ray(ndc, 1.0);
-            closest.push((o, d));
-            let Some(hit) = g.bvh.closest_hit(o, d, 0.0, f32::INFINITY) else {
-                continue;
-            };
-            let tri = &g.triangles[hit.triangle as usize];
-            let ng = tri.geometric_normal();
-            let ng = if ng.dot(d) > 0.0 { -ng } else { ng };
-            let p = Integrator::offset(o + d * hit.t, ng);
-            let bounce = Frame::from_normal(ng).to_world(sample_cosine_hemisphere(rng.uniform2()));
-            closest.push((p, bounce));
-            let light = &g.lights[(rng.next_u32() as usize) % g.lights.len().max(1)];
-            if let Some(y) = light.sample_point(rng.uniform2()) {
-                let v = y.p - p;
-                let dist = v.length();
-                if dist > 0.0 {
-                    shadow.push((p, v / dist, dist * 0.9999));
-                }
-            }
-        }
+/// Traces through the scene's BVH, keeping every ray.
+struct Recorder<'a> {
+    bvh: &'a Bvh,
+    rays: RefCell<Vec<RecordedRay>>,
+}
+
+impl Recorder<'_> {
+    fn keep(&self, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32, closest: bool) {
+        self.rays.borrow_mut().push(RecordedRay {
+            origin,
+            dir,
+            tmin,
+            tmax,
+            closest,
+        });
     }
-    RaySet { closest, shadow }
 }
 
-/// Rays per second of `trace` over `rays`, repeated for `budget`, on all cores.
-fn rays_per_second<T: Sync>(rays: &[T], budget: Duration, trace: impl Fn(&T) -> f32 + Sync) -> f64 {
+impl Tracer for Recorder<'_> {
+    fn closest_hit(&self, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> Option<Hit> {
+        self.keep(origin, dir, tmin, tmax, true);
+        self.bvh.closest_hit(origin, dir, tmin, tmax)
+    }
+
+    fn occluded(&self, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> bool {
+        self.keep(origin, dir, tmin, tmax, false);
+        self.bvh.occluded(origin, dir, tmin, tmax)
+    }
+}
+
+/// The rays of one pass of the renderer, one list per tile in the renderer's order, and the
+/// rays the renderer's statistics counted for that pass.
+fn record_pass(integrator: &Integrator, size: u32) -> (Vec<Vec<RecordedRay>>, u64) {
+    let tiles = Tiles::new(size, size);
+    let rays = integrator.scene().camera.rays(1.0);
+    let mut stats = Stats::default();
+    let recorded = (0..tiles.count())
+        .map(|tile| {
+            let recorder = Recorder {
+                bvh: &integrator.scene().geometry.bvh,
+                rays: RefCell::new(Vec::new()),
+            };
+            render_tile(integrator, &recorder, &rays, tiles, tile, 0, &mut stats);
+            recorder.rays.into_inner()
+        })
+        .collect();
+    (recorded, stats.rays())
+}
+
+/// Rays per second of the raw traversal over the recorded rays that `keep` selects, tiles
+/// spread over all cores as the renderer spreads them, repeated for `budget`.
+fn replay(
+    bvh: &Bvh,
+    tiles: &[Vec<RecordedRay>],
+    budget: Duration,
+    keep: impl Fn(&RecordedRay) -> bool + Sync,
+) -> f64 {
+    let trace = |r: &RecordedRay| {
+        if r.closest {
+            bvh.raw_closest_t(r.origin, r.dir, r.tmin, r.tmax).min(1e30)
+        } else {
+            bvh.occluded(r.origin, r.dir, r.tmin, r.tmax) as u8 as f32
+        }
+    };
     let start = Instant::now();
     let mut count = 0usize;
     let mut sink = 0.0f32;
     while start.elapsed() < budget {
-        sink += rays
-            .par_chunks(1024)
-            .map(|c| c.iter().map(&trace).sum::<f32>())
-            .sum::<f32>();
-        count += rays.len();
+        let (n, s) = tiles
+            .par_iter()
+            .map(|tile| {
+                tile.iter()
+                    .filter(|r| keep(r))
+                    .fold((0usize, 0.0f32), |(n, s), r| (n + 1, s + trace(r)))
+            })
+            .reduce(|| (0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1));
+        count += n;
+        sink += s;
     }
     // Keep the traversal from being optimised away.
     std::hint::black_box(sink);
@@ -80,20 +120,12 @@ pub fn run(args: &BenchArgs) -> Result<()> {
     );
     println!();
     println!(
-        "| scene | triangles | raw closest-hit Mrays/s | raw occlusion Mrays/s | raw mix Mrays/s | renderer (light) Mrays/s | renderer / raw mix |"
+        "| scene | triangles | raw closest-hit Mrays/s | raw occlusion Mrays/s | raw, all rays Mrays/s | renderer (light) Mrays/s | renderer / raw |"
     );
     println!("|---|---|---|---|---|---|---|");
     for name in builtin::NAMES {
         let scene = Scene::open(name)?;
         let bvh = &scene.geometry.bvh;
-        let rays = ray_set(&scene, args.size);
-        let closest = rays_per_second(&rays.closest, budget, |&(o, d)| {
-            bvh.raw_closest_t(o.into(), d.into()).min(1e30)
-        });
-        let occlusion = rays_per_second(&rays.shadow, budget, |&(o, d, t)| {
-            bvh.occluded(o, d, 0.0, t) as u8 as f32
-        });
-        // Compare like with like: the renderer's own mix of ray kinds, at raw speed.
         let integrator = Integrator::new(
             &scene,
             RenderSettings {
@@ -101,19 +133,26 @@ pub fn run(args: &BenchArgs) -> Result<()> {
                 ..RenderSettings::default()
             },
         );
+        // The raw side traces exactly the rays of the renderer's first pass, in its order.
+        let (recorded, counted) = record_pass(&integrator, args.size);
+        let traced: usize = recorded.iter().map(Vec::len).sum();
+        anyhow::ensure!(
+            traced as u64 == counted,
+            "{name}: the renderer traced {traced} rays but counted {counted}"
+        );
+        let closest = replay(bvh, &recorded, budget, |r| r.closest);
+        let occlusion = replay(bvh, &recorded, budget, |r| !r.closest);
+        let raw = replay(bvh, &recorded, budget, |_| true);
         let (_, stats, elapsed) = render_for(&integrator, args.size, args.size, budget);
         let renderer = stats.rays() as f64 / elapsed.as_secs_f64();
-        let closest_share =
-            (stats.camera_rays + stats.bounce_rays) as f64 / stats.rays().max(1) as f64;
-        let raw_mix = 1.0 / (closest_share / closest + (1.0 - closest_share) / occlusion);
         println!(
             "| {name} | {} | {:.2} | {:.2} | {:.2} | {:.2} | {:.0}% |",
             bvh.triangle_count(),
             closest / 1e6,
             occlusion / 1e6,
-            raw_mix / 1e6,
+            raw / 1e6,
             renderer / 1e6,
-            100.0 * renderer / raw_mix
+            100.0 * renderer / raw
         );
     }
     println!();

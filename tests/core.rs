@@ -8,11 +8,11 @@ use glam::{Vec2, Vec3};
 use portalview::light::Strategy;
 use portalview::material::Material;
 use portalview::render::integrator::{Integrator, RenderSettings};
-use portalview::render::render;
 use portalview::render::stats::Stats;
+use portalview::render::{Tiles, render, render_pass, render_tile};
 use portalview::sampling::{Rng, sample_cosine_hemisphere};
 use portalview::scene::Scene;
-use portalview::scene::bvh::Bvh;
+use portalview::scene::bvh::{Bvh, Hit, Tracer};
 use portalview::scene::desc::{MaterialDesc, SceneDesc};
 
 /// Brute-force closest hit over all triangles (Möller–Trumbore in f64).
@@ -211,6 +211,83 @@ fn same_image_with_one_and_two_threads() {
         one.mean().iter().any(|c| c.max_element() > 0.0),
         "image is black"
     );
+}
+
+/// Counts the rays it traces by kind.
+struct CountingTracer<'a> {
+    bvh: &'a Bvh,
+    closest: std::cell::Cell<u64>,
+    occlusion: std::cell::Cell<u64>,
+}
+
+impl Tracer for CountingTracer<'_> {
+    fn closest_hit(&self, o: Vec3, d: Vec3, tmin: f32, tmax: f32) -> Option<Hit> {
+        self.closest.set(self.closest.get() + 1);
+        self.bvh.closest_hit(o, d, tmin, tmax)
+    }
+
+    fn occluded(&self, o: Vec3, d: Vec3, tmin: f32, tmax: f32) -> bool {
+        self.occlusion.set(self.occlusion.get() + 1);
+        self.bvh.occluded(o, d, tmin, tmax)
+    }
+}
+
+/// The rays/s that the CLI and the benchmark report are only as true as the ray counts: every
+/// traced ray is counted once, in its kind, and the pass renders what `render_tile` renders.
+#[test]
+fn statistics_count_every_traced_ray() {
+    for name in ["lampshade", "fig8c"] {
+        let scene = Scene::open(name).unwrap();
+        for (strategy, max_depth) in [(Strategy::Light, 1), (Strategy::Antishadow, 3)] {
+            let integrator = Integrator::new(
+                &scene,
+                RenderSettings {
+                    strategy,
+                    max_depth,
+                    seed: 5,
+                    ..RenderSettings::default()
+                },
+            );
+            let tiles = Tiles::new(40, 30);
+            let rays = scene.camera.rays(40.0 / 30.0);
+            let tracer = CountingTracer {
+                bvh: &scene.geometry.bvh,
+                closest: Default::default(),
+                occlusion: Default::default(),
+            };
+            let mut stats = Stats::default();
+            let mut pixels = Vec::new();
+            for tile in 0..tiles.count() {
+                pixels.push(render_tile(
+                    &integrator,
+                    &tracer,
+                    &rays,
+                    tiles,
+                    tile,
+                    0,
+                    &mut stats,
+                ));
+            }
+            let label = format!("{name}, {strategy:?}, depth {max_depth}");
+            assert_eq!(
+                tracer.closest.get(),
+                stats.camera_rays + stats.bounce_rays,
+                "{label}"
+            );
+            assert_eq!(tracer.occlusion.get(), stats.shadow_rays, "{label}");
+            assert!(stats.shadow_rays > 0, "{label}: no shadow rays");
+            let never = std::sync::atomic::AtomicBool::new(false);
+            let (image, pass_stats) = render_pass(&integrator, 40, 30, 0, &never).unwrap();
+            assert_eq!(pass_stats.rays(), stats.rays(), "{label}");
+            for tile in 0..tiles.count() {
+                let (x0, y0, w, _) = tiles.rect(tile);
+                for (i, p) in pixels[tile as usize].iter().enumerate() {
+                    let (x, y) = (x0 + i as u32 % w, y0 + i as u32 / w);
+                    assert_eq!(*p, image[(y * 40 + x) as usize], "{label}: pixel {x},{y}");
+                }
+            }
+        }
+    }
 }
 
 /// A UV sphere's triangles (outward winding unless `inward`).

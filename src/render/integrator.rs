@@ -10,6 +10,7 @@ use crate::light::area::LightPoint;
 use crate::light::estimator::{LightContext, LightSample, LightSampler};
 use crate::material::Material;
 use crate::sampling::{Frame, Rng, power_heuristic};
+use crate::scene::bvh::Tracer;
 use crate::scene::{NO_LIGHT, Scene};
 
 /// What a render is asked to do.
@@ -97,6 +98,19 @@ impl<'a> Integrator<'a> {
 
     /// Radiance arriving at `origin` from direction `-dir`.
     pub fn radiance(&self, origin: Vec3, dir: Vec3, rng: &mut Rng, stats: &mut Stats) -> Vec3 {
+        self.radiance_traced(&self.scene.geometry.bvh, origin, dir, rng, stats)
+    }
+
+    /// [`Self::radiance`] with every ray traced through `tracer`: the scene's BVH, or the
+    /// benchmark's recorder of it.
+    pub fn radiance_traced<T: Tracer>(
+        &self,
+        tracer: &T,
+        origin: Vec3,
+        dir: Vec3,
+        rng: &mut Rng,
+        stats: &mut Stats,
+    ) -> Vec3 {
         let geometry = &*self.scene.geometry;
         let mut l = Vec3::ZERO;
         let mut beta = Vec3::ONE;
@@ -113,13 +127,13 @@ impl<'a> Integrator<'a> {
                     ctx: picked.then(|| &contexts[(depth as usize + 1) % 2]),
                     bsdf_pdf,
                 });
-                l += beta * self.emission_along(o, d, prev.as_ref(), stats);
+                l += beta * self.emission_along(tracer, o, d, prev.as_ref(), stats);
                 break;
             }
             if depth > 0 {
                 stats.bounce_rays += 1;
             }
-            let Some(hit) = geometry.bvh.closest_hit(o, d, 0.0, f32::INFINITY) else {
+            let Some(hit) = tracer.closest_hit(o, d, 0.0, f32::INFINITY) else {
                 break;
             };
             let tri = &geometry.triangles[hit.triangle as usize];
@@ -154,14 +168,15 @@ impl<'a> Integrator<'a> {
             };
 
             // Next-event estimation through the chosen strategy.
-            let picked = self.sample_direct(
+            let direct = self.sample_direct(
+                tracer,
                 &shading,
                 rng,
                 stats,
-                beta,
-                &mut l,
                 &mut contexts[depth as usize % 2],
             );
+            let picked = direct.is_some();
+            l += beta * direct.unwrap_or(Vec3::ZERO);
 
             // BSDF sampling: the next ray, and MIS for the light it may hit.
             let Some(bs) = material.sample(shading.wo_local, rng.uniform(), rng.uniform2()) else {
@@ -194,7 +209,14 @@ impl<'a> Integrator<'a> {
     /// light, MIS-weighted against the light technique of the previous vertex (if any). Only
     /// for scenes whose lights are all polygons: the nearest light polygon along the ray is
     /// found directly, and one occlusion ray checks that nothing lies before it.
-    fn emission_along(&self, o: Vec3, d: Vec3, prev: Option<&Previous>, stats: &mut Stats) -> Vec3 {
+    fn emission_along<T: Tracer>(
+        &self,
+        tracer: &T,
+        o: Vec3,
+        d: Vec3,
+        prev: Option<&Previous>,
+        stats: &mut Stats,
+    ) -> Vec3 {
         let geometry = &*self.scene.geometry;
         let nearest = geometry
             .lights
@@ -214,7 +236,7 @@ impl<'a> Integrator<'a> {
         }
         stats.shadow_rays += 1;
         // Stop short of the light so that its own triangles do not occlude it.
-        if geometry.bvh.occluded(o, d, 0.0, t * (1.0 - 1e-4) - 1e-5) {
+        if tracer.occluded(o, d, 0.0, t * (1.0 - 1e-4) - 1e-5) {
             return Vec3::ZERO;
         }
         match prev {
@@ -253,24 +275,21 @@ impl<'a> Integrator<'a> {
         })
     }
 
-    /// Picks a light, draws one sample from the strategy's mixture, traces its shadow ray and
-    /// adds the MIS-weighted contribution to `l`. Leaves the light's context in `ctx` for
-    /// later MIS and returns whether a light was picked.
-    fn sample_direct(
+    /// Picks a light, draws one sample from the strategy's mixture and traces its shadow ray:
+    /// the MIS-weighted contribution, or `None` when no light was picked. Leaves the light's
+    /// context in `ctx` for later MIS.
+    fn sample_direct<T: Tracer>(
         &self,
+        tracer: &T,
         s: &Shading,
         rng: &mut Rng,
         stats: &mut Stats,
-        beta: Vec3,
-        l: &mut Vec3,
         ctx: &mut LightContext,
-    ) -> bool {
+    ) -> Option<Vec3> {
         let u_pick = rng.uniform();
         let u_technique = rng.uniform();
         let u = rng.uniform2();
-        let Some((light, light_prob)) = self.lights.pick_light(u_pick) else {
-            return false;
-        };
+        let (light, light_prob) = self.lights.pick_light(u_pick)?;
         let timed = stats.shading_points().is_multiple_of(TIMING_STRIDE);
         let start = timed.then(Instant::now);
         self.lights.fill_context(self.scene, light, s.x, ctx);
@@ -287,16 +306,19 @@ impl<'a> Integrator<'a> {
         match &sample {
             Some(sample) => {
                 stats.count_technique(sample.technique);
-                *l += beta * self.direct(sample, light_prob, s, stats);
+                Some(self.direct(tracer, sample, light_prob, s, stats))
             }
-            None => stats.empty_samples += 1,
+            None => {
+                stats.empty_samples += 1;
+                Some(Vec3::ZERO)
+            }
         }
-        true
     }
 
     /// A light sample's contribution, weighted against BSDF sampling by the power heuristic.
-    fn direct(
+    fn direct<T: Tracer>(
         &self,
+        tracer: &T,
         sample: &LightSample,
         light_prob: f32,
         s: &Shading,
@@ -320,7 +342,7 @@ impl<'a> Integrator<'a> {
         stats.shadow_rays += 1;
         // Stop short of the light so that its own triangles do not occlude it.
         let tmax = dist * (1.0 - 1e-4) - 1e-5;
-        if self.scene.geometry.bvh.occluded(s.x, sample.wi, 0.0, tmax) {
+        if tracer.occluded(s.x, sample.wi, 0.0, tmax) {
             return Vec3::ZERO;
         }
         let light_pdf = light_prob * sample.pdf;

@@ -13,6 +13,8 @@ use rayon::prelude::*;
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use crate::sampling::Rng;
+use crate::scene::bvh::Tracer;
+use crate::scene::camera::RayGenerator;
 use film::Film;
 use integrator::Integrator;
 use stats::Stats;
@@ -35,9 +37,68 @@ pub const TILE: u32 = 16;
 #[error("render pass cancelled")]
 pub struct Cancelled;
 
-/// One sample per pixel for a `width × height` image. Each pixel's random numbers depend only
-/// on (seed, pass, pixel), so the image is the same whatever the thread count. Checks `cancel`
-/// before each tile, so a pass stops within one tile's work.
+/// The square tiles of a `width × height` image, in the order passes render them.
+#[derive(Clone, Copy, Debug)]
+pub struct Tiles {
+    pub width: u32,
+    pub height: u32,
+    across: u32,
+}
+
+impl Tiles {
+    pub fn new(width: u32, height: u32) -> Self {
+        Tiles {
+            width,
+            height,
+            across: width.div_ceil(TILE),
+        }
+    }
+
+    pub fn count(&self) -> u32 {
+        self.across * self.height.div_ceil(TILE)
+    }
+
+    /// Top-left pixel and size of tile `tile`.
+    pub fn rect(&self, tile: u32) -> (u32, u32, u32, u32) {
+        let (x0, y0) = ((tile % self.across) * TILE, (tile / self.across) * TILE);
+        let (x1, y1) = ((x0 + TILE).min(self.width), (y0 + TILE).min(self.height));
+        (x0, y0, x1 - x0, y1 - y0)
+    }
+}
+
+/// One sample for each pixel of tile `tile`, row by row, every ray traced through `tracer`.
+/// Each pixel's random numbers depend only on (seed, pass, pixel).
+pub fn render_tile<T: Tracer>(
+    integrator: &Integrator,
+    tracer: &T,
+    rays: &RayGenerator,
+    tiles: Tiles,
+    tile: u32,
+    pass: u32,
+    stats: &mut Stats,
+) -> Vec<Vec3> {
+    let seed = integrator.settings().seed;
+    let (x0, y0, w, h) = tiles.rect(tile);
+    let size = Vec2::new(tiles.width as f32, tiles.height as f32);
+    let mut pixels = Vec::with_capacity((w * h) as usize);
+    for y in y0..y0 + h {
+        for x in x0..x0 + w {
+            let index = (y * tiles.width + x) as u64;
+            let mut rng = Rng::keyed(seed, &[pass as u64, index]);
+            let jitter = rng.uniform2();
+            let (o, d) = rays.ray((Vec2::new(x as f32, y as f32) + jitter) / size);
+            let l = integrator.radiance_traced(tracer, o, d, &mut rng, stats);
+            // A NaN or infinity would poison the mean forever; drop it loudly in tests.
+            debug_assert!(l.is_finite(), "non-finite radiance at pixel {x},{y}");
+            pixels.push(if l.is_finite() { l } else { Vec3::ZERO });
+        }
+    }
+    pixels
+}
+
+/// One sample per pixel for a `width × height` image, tiles spread over the rayon pool; the
+/// image is the same whatever the thread count. Checks `cancel` before each tile, so a pass
+/// stops within one tile's work.
 pub fn render_pass(
     integrator: &Integrator,
     width: u32,
@@ -45,42 +106,25 @@ pub fn render_pass(
     pass: u32,
     cancel: &AtomicBool,
 ) -> Result<(Vec<Vec3>, Stats), Cancelled> {
-    let tiles_x = width.div_ceil(TILE);
-    let tiles_y = height.div_ceil(TILE);
+    let tiles = Tiles::new(width, height);
     let rays = integrator.scene().camera.rays(width as f32 / height as f32);
-    let seed = integrator.settings().seed;
-    let tiles: Vec<Option<(u32, Vec<Vec3>, Stats)>> = (0..tiles_x * tiles_y)
+    let bvh = &integrator.scene().geometry.bvh;
+    let rendered: Vec<Option<(u32, Vec<Vec3>, Stats)>> = (0..tiles.count())
         .into_par_iter()
         .map(|tile| {
             if cancel.load(Ordering::Relaxed) {
                 return None;
             }
-            let (x0, y0) = ((tile % tiles_x) * TILE, (tile / tiles_x) * TILE);
             let mut stats = Stats::default();
-            let mut pixels = Vec::with_capacity((TILE * TILE) as usize);
-            for y in y0..(y0 + TILE).min(height) {
-                for x in x0..(x0 + TILE).min(width) {
-                    let index = (y * width + x) as u64;
-                    let mut rng = Rng::keyed(seed, &[pass as u64, index]);
-                    let jitter = rng.uniform2();
-                    let ndc = (Vec2::new(x as f32, y as f32) + jitter)
-                        / Vec2::new(width as f32, height as f32);
-                    let (o, d) = rays.ray(ndc);
-                    let l = integrator.radiance(o, d, &mut rng, &mut stats);
-                    // A NaN or infinity would poison the mean forever; drop it loudly in tests.
-                    debug_assert!(l.is_finite(), "non-finite radiance at pixel {x},{y}");
-                    pixels.push(if l.is_finite() { l } else { Vec3::ZERO });
-                }
-            }
+            let pixels = render_tile(integrator, bvh, &rays, tiles, tile, pass, &mut stats);
             Some((tile, pixels, stats))
         })
         .collect();
     let mut image = vec![Vec3::ZERO; (width * height) as usize];
     let mut total = Stats::default();
-    for entry in tiles {
+    for entry in rendered {
         let (tile, pixels, stats) = entry.ok_or(Cancelled)?;
-        let (x0, y0) = ((tile % tiles_x) * TILE, (tile / tiles_x) * TILE);
-        let w = (x0 + TILE).min(width) - x0;
+        let (x0, y0, w, _) = tiles.rect(tile);
         for (i, p) in pixels.into_iter().enumerate() {
             let (dx, dy) = (i as u32 % w, i as u32 / w);
             image[((y0 + dy) * width + x0 + dx) as usize] = p;

@@ -75,6 +75,27 @@ fn make_ray(origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> Ray {
     Ray::new(origin.into(), (dir + Vec3::ZERO).into(), tmin, tmax)
 }
 
+/// The two ray queries a renderer makes. The renderer traces through [`Bvh`]; the benchmark
+/// traces through a recorder, to replay exactly the renderer's rays through raw traversal.
+pub trait Tracer {
+    /// The closest hit of `origin + t·dir` with `t` in `(tmin, tmax)`.
+    fn closest_hit(&self, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> Option<Hit>;
+    /// Whether anything lies on the open segment `origin + t·dir`, `t` in `(tmin, tmax)`.
+    fn occluded(&self, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> bool;
+}
+
+impl Tracer for Bvh {
+    #[inline]
+    fn closest_hit(&self, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> Option<Hit> {
+        Bvh::closest_hit(self, origin, dir, tmin, tmax)
+    }
+
+    #[inline]
+    fn occluded(&self, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> bool {
+        Bvh::occluded(self, origin, dir, tmin, tmax)
+    }
+}
+
 pub struct Bvh {
     /// `None` for an empty scene, where every ray misses.
     cwbvh: Option<CwBvh>,
@@ -152,16 +173,14 @@ impl Bvh {
     }
 
     /// The raw obvhs traversal with no shading work, for benchmarks: closest-hit distance.
-    pub fn raw_closest_t(&self, origin: Vec3A, dir: Vec3A) -> f32 {
+    pub fn raw_closest_t(&self, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> f32 {
         let Some(bvh) = self.cwbvh.as_ref() else {
             return f32::INFINITY;
         };
         let mut hit = RayHit::none();
-        bvh.ray_traverse(
-            make_ray(origin.into(), dir.into(), 0.0, f32::INFINITY),
-            &mut hit,
-            |r, id| self.triangles[id].intersect(r),
-        );
+        bvh.ray_traverse(make_ray(origin, dir, tmin, tmax), &mut hit, |r, id| {
+            self.triangles[id].intersect(r)
+        });
         hit.t
     }
 }
