@@ -9,7 +9,7 @@
 use glam::{Vec2, Vec3};
 use std::f32::consts::{FRAC_1_PI, PI};
 
-use crate::sampling::{cosine_hemisphere_pdf, sample_cosine_hemisphere};
+use crate::sampling::{cosine_hemisphere_pdf, sample_cosine_hemisphere, sin_cos_turn};
 use crate::scene::desc::MaterialDesc;
 
 /// Roughness is clamped so the GGX lobe stays a density (no delta lobes, so MIS always applies).
@@ -105,7 +105,8 @@ impl Material {
         let m = self.metallic;
         let s = self.specular_weight(wo.z);
         let diffuse = (1.0 - m) * (1.0 - s) * self.base_color * FRAC_1_PI;
-        let p_spec = self.specular_probability(wo.z);
+        // `specular_probability`, sharing `s`.
+        let p_spec = m + (1.0 - m) * s;
         let pdf_diffuse = (1.0 - p_spec) * cosine_hemisphere_pdf(wi.z);
         if p_spec <= 0.0 {
             return (diffuse, pdf_diffuse);
@@ -116,8 +117,11 @@ impl Material {
         // Height-correlated masking-shadowing G2 for the value; the pdf of visible-normal
         // sampling uses the masking G1(wo) = 1 / (1 + Λo).
         let dg = d / ((1.0 + lambda_o + lambda_i) * 4.0 * wo.z * wi.z);
-        let metal = self.base_color + (Vec3::ONE - self.base_color) * schlick(0.0, wo.dot(h));
-        let f = diffuse + ((1.0 - m) * s) * dg * Vec3::ONE + m * dg * metal;
+        let mut f = diffuse + ((1.0 - m) * s * dg) * Vec3::ONE;
+        if m > 0.0 {
+            let metal = self.base_color + (Vec3::ONE - self.base_color) * schlick(0.0, wo.dot(h));
+            f += m * dg * metal;
+        }
         let pdf_specular = d / ((1.0 + lambda_o) * 4.0 * wo.z);
         (f, pdf_diffuse + p_spec * pdf_specular)
     }
@@ -176,10 +180,10 @@ fn sample_ggx_vndf(wo: Vec3, alpha: f32, u: Vec2) -> Vec3 {
     };
     let t2 = vh.cross(t1);
     let r = u.x.sqrt();
-    let phi = 2.0 * PI * u.y;
-    let p1 = r * phi.cos();
+    let (sin_phi, cos_phi) = sin_cos_turn(u.y);
+    let p1 = r * cos_phi;
     let s = 0.5 * (1.0 + vh.z);
-    let p2 = (1.0 - s) * (1.0 - p1 * p1).max(0.0).sqrt() + s * r * phi.sin();
+    let p2 = (1.0 - s) * (1.0 - p1 * p1).max(0.0).sqrt() + s * r * sin_phi;
     let nh = p1 * t1 + p2 * t2 + (1.0 - p1 * p1 - p2 * p2).max(0.0).sqrt() * vh;
     Vec3::new(alpha * nh.x, alpha * nh.y, nh.z.max(1e-7)).normalize()
 }

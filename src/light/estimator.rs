@@ -265,11 +265,17 @@ impl LightSampler {
             (term.technique, sampled)
         };
         let le = hit.map_or(Vec3::ZERO, |(y, _)| light.emitted(y.n, -wi));
+        // Without portals the mixture is light sampling alone, whose density is in hand.
+        let pdf = if ctx.uses_portals {
+            self.pdf(scene, ctx, wi, hit)
+        } else {
+            technique_pdf
+        };
         Some(LightSample {
             wi,
             hit,
             le,
-            pdf: self.pdf(scene, ctx, wi, hit),
+            pdf,
             technique,
             technique_pdf,
         })

@@ -252,8 +252,7 @@ impl ConvexPolygon {
 
     /// Edges `(v_i, v_{i+1})`, closing back to the first vertex.
     pub fn edges(&self) -> impl Iterator<Item = (Vec3, Vec3)> + '_ {
-        let n = self.vertices.len();
-        (0..n).map(move |i| (self.vertices[i], self.vertices[(i + 1) % n]))
+        super::cyclic_pairs(&self.vertices)
     }
 
     /// A uniformly distributed point on the polygon (pdf `1 / area`): a fan triangle by area
@@ -380,9 +379,7 @@ pub fn clip_by_plane(vertices: &[Vec3], plane: Plane) -> Verts {
 /// [`clip_by_plane`] into a reused buffer.
 fn clip_by_plane_into(vertices: &[Vec3], plane: Plane, out: &mut Verts) {
     out.clear();
-    let n = vertices.len();
-    for i in 0..n {
-        let (a, b) = (vertices[i], vertices[(i + 1) % n]);
+    for (a, b) in super::cyclic_pairs(vertices) {
         let (da, db) = (plane.signed_distance(a), plane.signed_distance(b));
         if da >= 0.0 {
             push(out, a);

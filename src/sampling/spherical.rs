@@ -128,8 +128,7 @@ pub fn invert_spherical_triangle_sample(a: Vec3, b: Vec3, c: Vec3, w: Vec3) -> O
 /// The point of the convex polygon `vertices` (relative to x, wound so that `v_i × v_{i+1}`
 /// points inside) nearest x, given the foot of x on its plane.
 fn nearest_point(vertices: &[DVec3], foot: DVec3) -> DVec3 {
-    let n = vertices.len();
-    let edges = (0..n).map(|i| (vertices[i], vertices[(i + 1) % n]));
+    let edges = super::cyclic_pairs(vertices);
     if edges.clone().all(|(a, b)| foot.dot(a.cross(b - a)) >= 0.0) {
         return foot;
     }
@@ -225,11 +224,8 @@ impl SphericalPolygon {
         }
         let unit: ArrayVec<DVec3, MAX_CLIP_VERTICES> =
             offsets.iter().map(|r| r.normalize()).collect();
-        let edge_normals: Verts = (0..n)
-            .map(|i| {
-                let (r, r_next) = (offsets[i], offsets[(i + 1) % n]);
-                r.cross(r_next - r).normalize_or_zero().as_vec3()
-            })
+        let edge_normals: Verts = super::cyclic_pairs(&offsets)
+            .map(|(r, r_next)| r.cross(r_next - r).normalize_or_zero().as_vec3())
             .collect();
         // The fan's apex is the polygon's point nearest x, not a vertex: every polygon point is
         // then less than 90° from it, whereas from x close to a large polygon the diagonals of
@@ -237,8 +233,8 @@ impl SphericalPolygon {
         let apex = nearest_point(&offsets, height * away).normalize();
         let mut fan_cdf = ArrayVec::new();
         let mut total = 0.0;
-        for i in 0..n {
-            total += solid_angle_f64(apex, unit[i], unit[(i + 1) % n]);
+        for (a, b) in super::cyclic_pairs(&unit) {
+            total += solid_angle_f64(apex, a, b);
             fan_cdf.push(total as f32);
         }
         let solid_angle = total as f32;
