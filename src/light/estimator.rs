@@ -178,25 +178,33 @@ impl LightSampler {
         // Weights by the light's solid angle through each portal; one term needs none.
         let several = candidates.len() > 1;
         for (j, region, technique) in candidates {
-            let projection = if several || technique == Technique::Projection {
-                projection(&scene.portals[j], x)
-            } else {
-                None
-            };
-            let weight = match (&projection, several) {
-                (_, false) => 1.0,
-                (Some(q), true) => q.solid_angle(),
-                (None, true) => 0.0,
-            };
-            let usable = technique != Technique::Projection || projection.is_some();
-            if weight > 0.0 && usable {
-                ctx.terms.push(PortalTerm {
+            // The term goes in first and its projection is built into it: a spherical polygon
+            // is over a kilobyte, and each move of it is a copy.
+            if ctx
+                .terms
+                .try_push(PortalTerm {
                     portal: j,
                     region,
                     technique,
-                    weight,
-                    projection,
-                });
+                    weight: 1.0,
+                    projection: None,
+                })
+                .is_err()
+            {
+                break;
+            }
+            let Some(term) = ctx.terms.last_mut() else {
+                break;
+            };
+            if several || technique == Technique::Projection {
+                term.projection = projection(&scene.portals[j], x);
+            }
+            if several {
+                term.weight = term.projection.as_ref().map_or(0.0, |q| q.solid_angle());
+            }
+            let usable = technique != Technique::Projection || term.projection.is_some();
+            if term.weight <= 0.0 || !usable {
+                ctx.terms.pop();
             }
         }
         let total: f32 = ctx.terms.iter().map(|t| t.weight).sum();

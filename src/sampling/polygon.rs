@@ -400,7 +400,8 @@ fn push(out: &mut Verts, p: Vec3) {
 /// Clips `subject` (coplanar with `clip`) to the inside of the convex polygon `clip`.
 pub fn clip_convex(subject: &[Vec3], clip: &ConvexPolygon) -> Verts {
     // Two buffers in turn, so that no clip copies a whole vertex array.
-    let mut buffers = [subject.iter().copied().collect::<Verts>(), Verts::new()];
+    let mut buffers = [Verts::new(), Verts::new()];
+    buffers[0].extend(subject.iter().copied());
     let mut current = 0;
     for (a, b) in clip.edges() {
         if buffers[current].len() < 3 {

@@ -207,8 +207,10 @@ impl SphericalPolygon {
             .sum();
         let area = 0.5 * twice_area.length();
         let winding_normal = twice_area.try_normalize()?;
-        let mut offsets: ArrayVec<DVec3, MAX_CLIP_VERTICES> =
-            vertices.iter().map(|v| v.as_dvec3() - xd).collect();
+        // Arrays are filled in place (`extend`, not `collect`): a collected array is copied
+        // whole, all of its capacity, when it is moved into place.
+        let mut offsets: ArrayVec<DVec3, MAX_CLIP_VERTICES> = ArrayVec::new();
+        offsets.extend(vertices.iter().map(|v| v.as_dvec3() - xd));
         let mean_offset = offsets.iter().copied().sum::<DVec3>() / n as f64;
         let scale = offsets.iter().map(|r| r.length()).fold(0.0, f64::max);
         // Orient the polygon so that its winding normal points away from x: then `r_i × r_{i+1}`
@@ -222,11 +224,13 @@ impl SphericalPolygon {
         if height.is_nan() || height <= PLANE_TOLERANCE * scale {
             return None;
         }
-        let unit: ArrayVec<DVec3, MAX_CLIP_VERTICES> =
-            offsets.iter().map(|r| r.normalize()).collect();
-        let edge_normals: Verts = super::cyclic_pairs(&offsets)
-            .map(|(r, r_next)| r.cross(r_next - r).normalize_or_zero().as_vec3())
-            .collect();
+        let mut unit: ArrayVec<DVec3, MAX_CLIP_VERTICES> = ArrayVec::new();
+        unit.extend(offsets.iter().map(|r| r.normalize()));
+        let mut edge_normals = Verts::new();
+        edge_normals.extend(
+            super::cyclic_pairs(&offsets)
+                .map(|(r, r_next)| r.cross(r_next - r).normalize_or_zero().as_vec3()),
+        );
         // The fan's apex is the polygon's point nearest x, not a vertex: every polygon point is
         // then less than 90° from it, whereas from x close to a large polygon the diagonals of
         // a vertex fan join nearly opposite directions, whose great circles f32 cannot pin down.
@@ -245,10 +249,10 @@ impl SphericalPolygon {
             n: -away.as_vec3(),
             d: -away.dot(xd + mean_offset) as f32,
         };
-        Some(SphericalPolygon {
+        let mut polygon = SphericalPolygon {
             origin: x,
-            offsets: offsets.iter().map(|r| r.as_vec3()).collect(),
-            directions: unit.iter().map(|d| d.as_vec3()).collect(),
+            offsets: Verts::new(),
+            directions: Verts::new(),
             apex: apex.as_vec3(),
             edge_normals,
             fan_cdf,
@@ -256,7 +260,10 @@ impl SphericalPolygon {
             plane,
             height: height as f32,
             area: area as f32,
-        })
+        };
+        polygon.offsets.extend(offsets.iter().map(|r| r.as_vec3()));
+        polygon.directions.extend(unit.iter().map(|d| d.as_vec3()));
+        Some(polygon)
     }
 
     /// The point the polygon is seen from.
