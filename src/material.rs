@@ -128,19 +128,25 @@ impl Material {
 
     /// Draws `wi`: the lobe by `u_lobe`, then the direction by `u`.
     pub fn sample(&self, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
+        self.sampled(wo, self.sample_direction(wo, u_lobe, u)?)
+    }
+
+    /// The direction part of [`Self::sample`], for callers that may not need its value.
+    pub fn sample_direction(&self, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<Vec3> {
         if wo.z <= 0.0 {
             return None;
         }
-        let wi = if u_lobe < self.specular_probability(wo.z) {
+        if u_lobe < self.specular_probability(wo.z) {
             let h = sample_ggx_vndf(wo, self.alpha, u);
             let wi = 2.0 * wo.dot(h) * h - wo;
-            if wi.z <= 0.0 {
-                return None;
-            }
-            wi
+            (wi.z > 0.0).then_some(wi)
         } else {
-            sample_cosine_hemisphere(u)
-        };
+            Some(sample_cosine_hemisphere(u))
+        }
+    }
+
+    /// The sample that [`Self::sample_direction`] drew as `wi`: its value and pdf.
+    pub fn sampled(&self, wo: Vec3, wi: Vec3) -> Option<BsdfSample> {
         let (f, pdf) = self.eval_pdf(wo, wi);
         (pdf > 0.0).then_some(BsdfSample { wi, f, pdf })
     }

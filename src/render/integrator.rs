@@ -179,13 +179,23 @@ impl<'a> Integrator<'a> {
             l += beta * direct.unwrap_or(Vec3::ZERO);
 
             // BSDF sampling: the next ray, and MIS for the light it may hit.
-            let Some(bs) = material.sample(shading.wo_local, rng.uniform(), rng.uniform2()) else {
+            let (u_lobe, u) = (rng.uniform(), rng.uniform2());
+            let Some(wi_local) = material.sample_direction(shading.wo_local, u_lobe, u) else {
                 break;
             };
-            let wi = shading.frame.to_world(bs.wi);
+            let wi = shading.frame.to_world(wi_local);
             if wi.dot(shading.ng) <= 0.0 {
                 break;
             }
+            // Before the last vertex, a direction that meets no light polygon gathers nothing:
+            // skip evaluating the BSDF for it (most directions, in these scenes).
+            let last = depth + 1 == self.settings.max_depth;
+            if last && self.polygon_lights && self.nearest_light_polygon(shading.x, wi).is_none() {
+                break;
+            }
+            let Some(bs) = material.sampled(shading.wo_local, wi_local) else {
+                break;
+            };
             beta *= bs.f * bs.wi.z / bs.pdf;
             if !beta.is_finite() {
                 break;
@@ -218,13 +228,7 @@ impl<'a> Integrator<'a> {
         stats: &mut Stats,
     ) -> Vec3 {
         let geometry = &*self.scene.geometry;
-        let nearest = geometry
-            .lights
-            .iter()
-            .enumerate()
-            .filter_map(|(i, l)| Some((i, l.polygon.as_ref()?.intersect(o, d)?)))
-            .min_by(|a, b| a.1.total_cmp(&b.1));
-        let Some((light, t)) = nearest else {
+        let Some((light, t)) = self.nearest_light_polygon(o, d) else {
             return Vec3::ZERO;
         };
         let Some(polygon) = &geometry.lights[light].polygon else {
@@ -250,6 +254,17 @@ impl<'a> Integrator<'a> {
                 le * power_heuristic(prev.bsdf_pdf, light_pdf)
             }
         }
+    }
+
+    /// The light whose polygon the ray `o + t·d` meets first, and the distance `t`.
+    fn nearest_light_polygon(&self, o: Vec3, d: Vec3) -> Option<(usize, f32)> {
+        self.scene
+            .geometry
+            .lights
+            .iter()
+            .enumerate()
+            .filter_map(|(i, l)| Some((i, l.polygon.as_ref()?.intersect(o, d)?)))
+            .min_by(|a, b| a.1.total_cmp(&b.1))
     }
 
     /// The shading frame on the side the ray came from, or `None` where the shading normal
