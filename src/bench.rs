@@ -17,21 +17,34 @@ use crate::scene::{Scene, builtin};
 
 /// One ray the renderer traced, kept to be replayed through the raw traversal.
 #[derive(Clone, Copy, Debug)]
-struct RecordedRay {
-    origin: Vec3,
-    dir: Vec3,
-    tmin: f32,
-    tmax: f32,
-    closest: bool,
+pub struct RecordedRay {
+    pub origin: Vec3,
+    pub dir: Vec3,
+    pub tmin: f32,
+    pub tmax: f32,
+    /// A closest-hit query (else an occlusion query).
+    pub closest: bool,
 }
 
 /// Traces through the scene's BVH, keeping every ray.
-struct Recorder<'a> {
+pub struct Recorder<'a> {
     bvh: &'a Bvh,
     rays: RefCell<Vec<RecordedRay>>,
 }
 
-impl Recorder<'_> {
+impl<'a> Recorder<'a> {
+    pub fn new(bvh: &'a Bvh) -> Self {
+        Recorder {
+            bvh,
+            rays: RefCell::new(Vec::new()),
+        }
+    }
+
+    /// The rays traced so far, in order.
+    pub fn into_rays(self) -> Vec<RecordedRay> {
+        self.rays.into_inner()
+    }
+
     fn keep(&self, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32, closest: bool) {
         self.rays.borrow_mut().push(RecordedRay {
             origin,
@@ -63,12 +76,9 @@ fn record_pass(integrator: &Integrator, size: u32) -> (Vec<Vec<RecordedRay>>, u6
     let mut stats = Stats::default();
     let recorded = (0..tiles.count())
         .map(|tile| {
-            let recorder = Recorder {
-                bvh: &integrator.scene().geometry.bvh,
-                rays: RefCell::new(Vec::new()),
-            };
+            let recorder = Recorder::new(&integrator.scene().geometry.bvh);
             render_tile(integrator, &recorder, &rays, tiles, tile, 0, &mut stats);
-            recorder.rays.into_inner()
+            recorder.into_rays()
         })
         .collect();
     (recorded, stats.rays())

@@ -5,6 +5,7 @@ mod common;
 
 use common::*;
 use glam::{Vec2, Vec3};
+use portalview::bench::Recorder;
 use portalview::light::Strategy;
 use portalview::material::Material;
 use portalview::render::integrator::{Integrator, RenderSettings};
@@ -12,7 +13,7 @@ use portalview::render::stats::Stats;
 use portalview::render::{Tiles, render, render_pass, render_tile};
 use portalview::sampling::{Rng, sample_cosine_hemisphere};
 use portalview::scene::Scene;
-use portalview::scene::bvh::{Bvh, Hit, Tracer};
+use portalview::scene::bvh::Bvh;
 use portalview::scene::desc::{MaterialDesc, SceneDesc};
 
 /// Brute-force closest hit over all triangles (Möller–Trumbore in f64).
@@ -213,25 +214,6 @@ fn same_image_with_one_and_two_threads() {
     );
 }
 
-/// Counts the rays it traces by kind.
-struct CountingTracer<'a> {
-    bvh: &'a Bvh,
-    closest: std::cell::Cell<u64>,
-    occlusion: std::cell::Cell<u64>,
-}
-
-impl Tracer for CountingTracer<'_> {
-    fn closest_hit(&self, o: Vec3, d: Vec3, tmin: f32, tmax: f32) -> Option<Hit> {
-        self.closest.set(self.closest.get() + 1);
-        self.bvh.closest_hit(o, d, tmin, tmax)
-    }
-
-    fn occluded(&self, o: Vec3, d: Vec3, tmin: f32, tmax: f32) -> bool {
-        self.occlusion.set(self.occlusion.get() + 1);
-        self.bvh.occluded(o, d, tmin, tmax)
-    }
-}
-
 /// The rays/s that the CLI and the benchmark report are only as true as the ray counts: every
 /// traced ray is counted once, in its kind, and the pass renders what `render_tile` renders.
 #[test]
@@ -250,17 +232,14 @@ fn statistics_count_every_traced_ray() {
             );
             let tiles = Tiles::new(40, 30);
             let rays = scene.camera.rays(40.0 / 30.0);
-            let tracer = CountingTracer {
-                bvh: &scene.geometry.bvh,
-                closest: Default::default(),
-                occlusion: Default::default(),
-            };
+            // The benchmark's recorder, whose rays are the raw side of its comparison.
+            let recorder = Recorder::new(&scene.geometry.bvh);
             let mut stats = Stats::default();
             let mut pixels = Vec::new();
             for tile in 0..tiles.count() {
                 pixels.push(render_tile(
                     &integrator,
-                    &tracer,
+                    &recorder,
                     &rays,
                     tiles,
                     tile,
@@ -268,13 +247,12 @@ fn statistics_count_every_traced_ray() {
                     &mut stats,
                 ));
             }
+            let traced = recorder.into_rays();
+            let closest = traced.iter().filter(|r| r.closest).count() as u64;
+            let occlusion = traced.len() as u64 - closest;
             let label = format!("{name}, {strategy:?}, depth {max_depth}");
-            assert_eq!(
-                tracer.closest.get(),
-                stats.camera_rays + stats.bounce_rays,
-                "{label}"
-            );
-            assert_eq!(tracer.occlusion.get(), stats.shadow_rays, "{label}");
+            assert_eq!(closest, stats.camera_rays + stats.bounce_rays, "{label}");
+            assert_eq!(occlusion, stats.shadow_rays, "{label}");
             assert!(stats.shadow_rays > 0, "{label}: no shadow rays");
             let never = std::sync::atomic::AtomicBool::new(false);
             let (image, pass_stats) = render_pass(&integrator, 40, 30, 0, &never).unwrap();

@@ -42,25 +42,26 @@ pub struct Cancelled;
 pub struct Tiles {
     pub width: u32,
     pub height: u32,
-    across: u32,
 }
 
 impl Tiles {
     pub fn new(width: u32, height: u32) -> Self {
-        Tiles {
-            width,
-            height,
-            across: width.div_ceil(TILE),
-        }
+        Tiles { width, height }
+    }
+
+    /// Tiles in a row.
+    fn across(&self) -> u32 {
+        self.width.div_ceil(TILE)
     }
 
     pub fn count(&self) -> u32 {
-        self.across * self.height.div_ceil(TILE)
+        self.across() * self.height.div_ceil(TILE)
     }
 
     /// Top-left pixel and size of tile `tile`.
     pub fn rect(&self, tile: u32) -> (u32, u32, u32, u32) {
-        let (x0, y0) = ((tile % self.across) * TILE, (tile / self.across) * TILE);
+        let across = self.across();
+        let (x0, y0) = ((tile % across) * TILE, (tile / across) * TILE);
         let (x1, y1) = ((x0 + TILE).min(self.width), (y0 + TILE).min(self.height));
         (x0, y0, x1 - x0, y1 - y0)
     }
