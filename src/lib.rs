@@ -1,14 +1,29 @@
 //! portalview: light portals for area lights (Romeu Huidobro 2022), generalised to convex
 //! polygons in any orientation, with a progressive CPU path tracer and an interactive viewer.
 //!
-//! The maths of the method lives in [`light`]; domain-free sampling in [`sampling`].
+//! The method is explained in `docs/method.md`; its maths lives in [`light`], domain-free
+//! sampling in [`sampling`].
+//!
+//! Layers, bottom to top; a module imports only from the layers below it:
+//!
+//! ```text
+//! io, camera, sampling, asset      files, the pinhole camera, warps and polygons, scene descriptions
+//! material, light                  the BSDF; area lights, portals, regions, strategies
+//! scene                            a validated scene ready to trace (triangles, BVH, lights)
+//! render                           integrator, passes, film, statistics, background workers
+//! compare                          metrics, references, equal-time comparison and its worker
+//! app                              the eframe viewer
+//! cli                              command-line parsing and the subcommands (nothing imports it)
+//! ```
 
 #![forbid(unsafe_code)]
 
 pub mod app;
-pub mod bench;
+pub mod asset;
+pub mod camera;
 pub mod cli;
 pub mod compare;
+pub mod io;
 pub mod light;
 pub mod material;
 pub mod render;

@@ -9,8 +9,8 @@
 use glam::{Vec2, Vec3};
 use std::f32::consts::{FRAC_1_PI, PI};
 
+use crate::asset::desc::MaterialDesc;
 use crate::sampling::{cosine_hemisphere_pdf, sample_cosine_hemisphere, sin_cos_turn};
-use crate::scene::desc::MaterialDesc;
 
 /// Roughness is clamped so the GGX lobe stays a density (no delta lobes, so MIS always applies).
 const MIN_ALPHA: f32 = 1e-3;

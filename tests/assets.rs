@@ -2,8 +2,9 @@
 //! code builds (regenerate with `portalview export --scene NAME --out assets/NAME.glb`).
 
 use glam::Vec3;
-use portalview::scene::desc::SceneDesc;
-use portalview::scene::{Scene, builtin, gltf_io};
+use portalview::asset::desc::SceneDesc;
+use portalview::asset::{builtin, gltf};
+use portalview::scene::Scene;
 use std::path::Path;
 
 fn close(a: Vec3, b: Vec3) -> bool {
@@ -64,7 +65,7 @@ fn assert_same(name: &str, file: &SceneDesc, code: &SceneDesc) {
 fn committed_assets_equal_the_builtin_scenes() {
     for name in builtin::NAMES {
         let path = Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("assets/{name}.glb"));
-        let file = gltf_io::load_gltf(&path).unwrap();
+        let file = gltf::load_gltf(&path).unwrap();
         assert_same(name, &file, &builtin::desc(name).unwrap());
         // And the loaded file is a valid scene with its portals.
         let scene = Scene::load(&path).unwrap();

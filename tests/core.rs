@@ -5,16 +5,16 @@ mod common;
 
 use common::*;
 use glam::{Vec2, Vec3};
-use portalview::bench::Recorder;
+use portalview::asset::desc::{MaterialDesc, SceneDesc};
 use portalview::light::Strategy;
 use portalview::material::Material;
 use portalview::render::integrator::{Integrator, RenderSettings};
+use portalview::render::record::Recorder;
 use portalview::render::stats::Stats;
 use portalview::render::{Tiles, render, render_pass, render_tile};
 use portalview::sampling::{Rng, sample_cosine_hemisphere};
 use portalview::scene::Scene;
 use portalview::scene::bvh::Bvh;
-use portalview::scene::desc::{MaterialDesc, SceneDesc};
 
 /// Brute-force closest hit over all triangles (Möller–Trumbore in f64).
 fn brute_force(tris: &[[Vec3; 3]], o: Vec3, d: Vec3) -> Option<(f32, usize)> {

@@ -8,8 +8,9 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 use glam::{Mat4, Quat, Vec3};
-use portalview::scene::desc::{CameraDesc, MaterialDesc, MeshDesc, PortalDesc, SceneDesc};
-use portalview::scene::gltf_io::{export_glb, load_gltf, save_portals};
+use portalview::asset::desc::{MaterialDesc, MeshDesc, PortalDesc, SceneDesc};
+use portalview::asset::gltf::{export_glb, load_gltf, save_portals};
+use portalview::camera::Camera;
 use serde_json::{Value, json};
 
 const EPS: f32 = 1e-5;
@@ -236,7 +237,7 @@ fn sample_scene() -> SceneDesc {
             ),
             node_index: None,
         }],
-        camera: Some(CameraDesc {
+        camera: Some(Camera {
             eye: Vec3::new(0.0, 1.0, 5.0),
             target: Vec3::new(0.0, 1.0, 0.0),
             up: Vec3::Y,

@@ -7,6 +7,7 @@
 mod common;
 
 use glam::{Vec2, Vec3};
+use portalview::asset::builtin;
 use portalview::light::antishadow::{Region, classify_brute_force};
 use portalview::light::estimator::{LightContext, LightSampler, portal_pdf, term_pdf};
 use portalview::light::{Strategy, Technique};
@@ -14,7 +15,7 @@ use portalview::render::film::Film;
 use portalview::render::integrator::{Integrator, RenderSettings};
 use portalview::render::render;
 use portalview::sampling::{Frame, Rng};
-use portalview::scene::{Scene, builtin};
+use portalview::scene::Scene;
 
 /// A cone of directions from `x` containing every direction to `points` (plus a margin), sampled
 /// uniformly: it covers the support of every technique for a light and its portals.

@@ -10,8 +10,8 @@ use egui_kittest::kittest::Queryable;
 use portalview::app::compare_view::{CompareLayout, Side};
 use portalview::app::{PortalViewApp, ViewMode};
 use portalview::compare::ReferenceOrigin;
+use portalview::compare::worker::{CompareFrame, ReferenceStatus};
 use portalview::light::Strategy;
-use portalview::render::compare_worker::{CompareFrame, ReferenceStatus};
 use std::path::PathBuf;
 use std::time::Duration;
 

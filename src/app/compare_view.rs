@@ -15,15 +15,15 @@ use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Duration;
 
-use crate::cli::default_height;
+use crate::compare::report::{sci, strategy_rgb, tick_label};
+use crate::compare::worker::{
+    CompareFrame, CompareHandle, CompareRequest, ReferenceSource, ReferenceStatus, RunFrame,
+};
 use crate::compare::{
     ConvergencePoint, ImageSpec, REFERENCE_STRATEGY, RELMSE_EPSILON, Reference, ReferenceBudget,
     ReferenceOrigin, default_cache_dir, scene_hash,
 };
 use crate::light::Strategy;
-use crate::render::compare_worker::{
-    CompareFrame, CompareHandle, CompareRequest, ReferenceSource, ReferenceStatus, RunFrame,
-};
 use crate::render::tonemap;
 use crate::scene::Scene;
 
@@ -161,12 +161,8 @@ impl Default for CompareView {
 
 /// Plot and label colours by strategy (those of `portalview compare`'s SVG plots).
 pub fn strategy_colour(strategy: Strategy) -> Color32 {
-    match strategy {
-        Strategy::Light => Color32::from_rgb(31, 119, 180),
-        Strategy::Portal => Color32::from_rgb(255, 127, 14),
-        Strategy::Projection => Color32::from_rgb(44, 160, 44),
-        Strategy::Antishadow => Color32::from_rgb(214, 39, 40),
-    }
+    let [r, g, b] = strategy_rgb(strategy);
+    Color32::from_rgb(r, g, b)
 }
 
 /// Per-pixel relative squared error, `mean over channels of (x - r)^2 / (r^2 + eps)` (the
@@ -192,27 +188,8 @@ pub fn error_map(image: &[Vec3], reference: &[Vec3]) -> Vec<Color32> {
 }
 
 /// Scientific notation with three decimals, or a dash for a missing value.
-fn sci(v: f64) -> String {
-    if v.is_finite() {
-        format!("{v:.3e}")
-    } else {
-        "-".to_owned()
-    }
-}
-
-/// A value given as its log10, for a log axis: plain between 0.01 and 1000, else `1e-5`.
-fn log_label(log10: f64) -> String {
-    let v = 10f64.powf(log10);
-    if (0.01..1000.0).contains(&v) {
-        let s = format!("{v:.3}");
-        s.trim_end_matches('0').trim_end_matches('.').to_owned()
-    } else {
-        format!("{v:.0e}")
-    }
-}
-
 fn log_tick(mark: GridMark, _range: &std::ops::RangeInclusive<f64>) -> String {
-    log_label(mark.value)
+    tick_label(10f64.powf(mark.value))
 }
 
 /// The largest rect of aspect ratio `aspect` (width / height) centred in `area`.
@@ -345,7 +322,7 @@ impl CompareView {
         let width = settings.width.max(1);
         Some(ImageSpec {
             width,
-            height: default_height(scene, width),
+            height: scene.camera.height_for_width(width),
             max_depth,
         })
     }
@@ -498,7 +475,7 @@ impl CompareView {
             (None, false) => self
                 .scene
                 .as_ref()
-                .map(|(s, _)| (*width, default_height(s, (*width).max(1)))),
+                .map(|(s, _)| (*width, s.camera.height_for_width((*width).max(1)))),
             (None, true) => None,
         };
         if let Some((w, h)) = size {
@@ -708,7 +685,7 @@ impl CompareView {
                     ..
                 } => Some(format!(
                     "{plot_name}\n{} s\n{what} {}",
-                    log_label(position.x),
+                    tick_label(10f64.powf(position.x)),
                     sci(10f64.powf(position.y))
                 )),
                 HoverPosition::Elsewhere { .. } => None,
@@ -1056,7 +1033,7 @@ fn error_legend(ui: &mut Ui) {
         ui.label(format!(
             "relative squared error (x - r)^2 / (r^2 + {RELMSE_EPSILON}):"
         ));
-        ui.label(log_label(ERROR_LOG_LO));
+        ui.label(tick_label(10f64.powf(ERROR_LOG_LO)));
         let (rect, _) = ui.allocate_exact_size(egui::vec2(200.0, 14.0), Sense::hover());
         let steps = 50;
         for i in 0..steps {
@@ -1070,6 +1047,6 @@ fn error_legend(ui: &mut Ui) {
                 Color32::from_rgb(r, g, b),
             );
         }
-        ui.label(log_label(ERROR_LOG_HI));
+        ui.label(tick_label(10f64.powf(ERROR_LOG_HI)));
     });
 }

@@ -2,10 +2,9 @@
 
 use glam::{Mat4, Quat, Vec3};
 
+use crate::asset::desc::PortalDesc;
 use crate::sampling::polygon::ConvexPolygon;
 use crate::scene::Scene;
-use crate::scene::builtin::DEFAULT_ALPHA;
-use crate::scene::desc::PortalDesc;
 
 /// A portal's placement: `world_from_local = T(center) · R · S · T(-local_center)`, so that
 /// moving, turning and resizing all happen about the portal's own centre.
@@ -126,24 +125,15 @@ impl PortalEditor {
         let l = scene.geometry.lights.get(light)?;
         let polygon = l.polygon.as_ref()?;
         let offset = polygon.normal() * (0.5 * polygon.area().sqrt());
-        let v = polygon.vertices();
-        let local_triangles = (1..v.len() - 1)
-            .map(|i| [v[0], v[i], v[i + 1]].map(|p| p + offset))
-            .collect();
+        let corners: Vec<Vec3> = polygon.vertices().iter().map(|&p| p + offset).collect();
         let taken = |name: &str| self.portals.iter().any(|p| p.name == name);
         let name = (1..)
             .map(|k| format!("portal_{}_{k}", l.name))
             .find(|n| !taken(n))
             .unwrap_or_default();
         self.checkpoint();
-        self.portals.push(PortalDesc {
-            name,
-            target: l.name.clone(),
-            alpha: DEFAULT_ALPHA,
-            local_triangles,
-            world_from_local: Mat4::IDENTITY,
-            node_index: None,
-        });
+        self.portals
+            .push(PortalDesc::from_polygon(name, l.name.clone(), &corners));
         self.selected = Some(self.portals.len() - 1);
         self.selected
     }

@@ -15,13 +15,14 @@ use std::path::{Path, PathBuf};
 use std::sync::mpsc::{Receiver, TryRecvError};
 use std::time::{Duration, Instant};
 
+use crate::asset::{builtin, gltf};
+use crate::camera::Camera;
 use crate::light::antishadow::Region;
 use crate::light::{Strategy, Technique};
 use crate::render::integrator::RenderSettings;
 use crate::render::tonemap;
 use crate::render::worker::{Frame, RenderHandle, RenderRequest};
-use crate::scene::camera::Camera;
-use crate::scene::{Scene, builtin, gltf_io};
+use crate::scene::Scene;
 use compare_view::{CompareView, CompareViewSettings};
 use edit::PortalEditor;
 use overlay::OverlayKind;
@@ -350,12 +351,12 @@ impl PortalViewApp {
         };
         let to_same_file = self.scene.source.as_deref() == Some(target.as_path());
         let written = if to_same_file {
-            gltf_io::save_portals(&target, &self.editor.portals)
+            gltf::save_portals(&target, &self.editor.portals)
         } else {
             let mut desc = (*self.scene.desc).clone();
             desc.portals = self.editor.portals.clone();
-            desc.camera = Some(self.camera.to_desc());
-            gltf_io::export_glb(&desc, &target)
+            desc.camera = Some(self.camera);
+            gltf::export_glb(&desc, &target)
         };
         written.map_err(|e| e.to_string())?;
         // Reload so that new portals know their nodes; keep the view as it is.
@@ -933,8 +934,20 @@ impl eframe::App for PortalViewApp {
     }
 }
 
+/// How the viewer starts; `None` keeps what was used last.
+#[derive(Clone, Debug, Default)]
+pub struct ViewOptions {
+    /// Built-in name or a `.gltf`/`.glb` path.
+    pub scene: Option<String>,
+    pub strategy: Option<Strategy>,
+    pub overlay: Option<OverlayKind>,
+    /// Draw the edges of the antishadow volumes.
+    pub volumes: bool,
+    pub max_depth: Option<u32>,
+}
+
 /// Opens the viewer window (blocks until it closes).
-pub fn run_viewer(args: crate::cli::ViewArgs) -> Result<()> {
+pub fn run_viewer(args: ViewOptions) -> Result<()> {
     let options = eframe::NativeOptions {
         viewport: egui::ViewportBuilder::default()
             .with_title("portalview")

@@ -91,7 +91,7 @@ const HANDLES: [Handle; 5] = [
 
 /// Maps world points to screen points through the camera, for an image drawn in `rect`.
 struct Projector {
-    camera: crate::scene::camera::Camera,
+    camera: crate::camera::Camera,
     rect: Rect,
 }
 

@@ -4,8 +4,8 @@ use glam::Vec3;
 
 use super::antishadow::{AntishadowError, AntishadowPlanes};
 use super::area::AreaLight;
+use crate::asset::desc::PortalDesc;
 use crate::sampling::polygon::{ConvexPolygon, PolygonError};
-use crate::scene::desc::PortalDesc;
 
 /// Why a portal node cannot be used; every message names the node.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]

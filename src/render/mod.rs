@@ -1,9 +1,10 @@
 //! Rendering: the integrator, the film, passes over tiles, and the worker threads a UI drives.
 
-pub mod compare_worker;
 pub mod film;
 pub mod integrator;
 pub mod primary;
+pub mod record;
+pub mod shell;
 pub mod stats;
 pub mod tonemap;
 pub mod worker;
@@ -12,22 +13,12 @@ use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicBool, Ordering};
 
+use crate::camera::RayGenerator;
 use crate::sampling::Rng;
 use crate::scene::bvh::Tracer;
-use crate::scene::camera::RayGenerator;
 use film::Film;
 use integrator::Integrator;
 use stats::Stats;
-
-/// The rayon pool a background worker renders with: `threads` named `{name}-{i}` (0 = every
-/// core), kept apart from the global pool so that a worker's passes never queue behind others.
-pub fn worker_pool(threads: usize, name: &'static str) -> std::io::Result<rayon::ThreadPool> {
-    rayon::ThreadPoolBuilder::new()
-        .num_threads(threads)
-        .thread_name(move |i| format!("{name}-{i}"))
-        .build()
-        .map_err(std::io::Error::other)
-}
 
 /// Side of the square tiles that threads take.
 pub const TILE: u32 = 16;

@@ -59,7 +59,7 @@ pub fn false_colour(t: f32) -> [u8; 3] {
 }
 
 /// Writes `pixels` (row-major, linear radiance) to `.exr` (linear, 32-bit float) or `.png`
-/// (tone-mapped sRGB), by the file's extension.
+/// (tone-mapped sRGB), by the file's extension, atomically.
 pub fn write_image(
     path: &Path,
     width: u32,
@@ -71,65 +71,21 @@ pub fn write_image(
         .extension()
         .and_then(|e| e.to_str())
         .map(str::to_ascii_lowercase);
-    let tmp = temporary_sibling(path);
-    match ext.as_deref() {
-        Some("exr") => {
-            exr::prelude::write_rgb_file(&tmp, width as usize, height as usize, |x, y| {
-                let c = pixels[y * width as usize + x];
-                (c.x, c.y, c.z)
-            })
-            .map_err(|e| anyhow::anyhow!("{}: cannot write EXR: {e}", path.display()))?;
-        }
+    let bytes = match ext.as_deref() {
+        Some("exr") => crate::io::exr_bytes(width, height, pixels)
+            .map_err(|e| anyhow::anyhow!("{}: cannot encode EXR: {e}", path.display()))?,
         Some("png") => {
-            let bytes: Vec<u8> = pixels.iter().flat_map(|&c| to_srgb8(c, exposure)).collect();
-            image::save_buffer_with_format(
-                &tmp,
-                &bytes,
-                width,
-                height,
-                image::ColorType::Rgb8,
-                image::ImageFormat::Png,
-            )
-            .map_err(|e| anyhow::anyhow!("{}: cannot write PNG: {e}", path.display()))?;
+            let rgb8: Vec<u8> = pixels.iter().flat_map(|&c| to_srgb8(c, exposure)).collect();
+            crate::io::png_bytes(width, height, &rgb8)
+                .map_err(|e| anyhow::anyhow!("{}: cannot encode PNG: {e}", path.display()))?
         }
         _ => anyhow::bail!(
             "{}: unknown image type (use .exr for linear radiance or .png)",
             path.display()
         ),
-    }
-    std::fs::rename(&tmp, path)
-        .map_err(|e| anyhow::anyhow!("{}: cannot replace the file: {e}", path.display()))
-}
-
-/// Reads an `.exr` as linear RGB: width, height and pixels.
-pub fn read_exr(path: &Path) -> anyhow::Result<(u32, u32, Vec<Vec3>)> {
-    use exr::prelude::*;
-    let image = read_first_rgba_layer_from_file(
-        path,
-        |resolution, _| {
-            (
-                resolution.width(),
-                vec![Vec3::ZERO; resolution.width() * resolution.height()],
-            )
-        },
-        |(width, pixels), position, (r, g, b, _a): (f32, f32, f32, f32)| {
-            pixels[position.y() * *width + position.x()] = Vec3::new(r, g, b);
-        },
-    )
-    .map_err(|e| anyhow::anyhow!("{}: cannot read EXR: {e}", path.display()))?;
-    let size = image.layer_data.size;
-    let (_, pixels) = image.layer_data.channel_data.pixels;
-    Ok((size.width() as u32, size.height() as u32, pixels))
-}
-
-/// `dir/.name.tmp`: written first, then renamed over the target, so a crash never leaves a
-/// half-written file in its place.
-pub fn temporary_sibling(path: &Path) -> std::path::PathBuf {
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    path.with_file_name(format!(".{name}.tmp"))
+    };
+    crate::io::write_atomic(path, &bytes)
+        .map_err(|e| anyhow::anyhow!("{}: cannot write: {e}", path.display()))
 }
 
 #[cfg(test)]

@@ -1,19 +1,16 @@
-//! The render worker: one background thread that owns the rendering threads and accumulates
-//! passes for the newest request. A UI drives it through a [`RenderHandle`] and never blocks on
-//! it: requests go down a channel, frames come back through a slot the UI polls.
+//! The render worker: accumulates passes for the newest request, a quarter-resolution preview
+//! first, on the [`shell`](super::shell) every worker shares. A UI drives it through a
+//! [`RenderHandle`] and never blocks on it.
 
 use glam::Vec3;
-use std::panic::AssertUnwindSafe;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::mpsc::{self, Receiver, RecvTimeoutError, Sender};
-use std::sync::{Arc, Mutex};
-use std::thread::JoinHandle;
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use super::film::Film;
 use super::integrator::{Integrator, RenderSettings};
 use super::primary::PrimaryBuffer;
 use super::render_pass;
+use super::shell::{Outbox, Work, WorkerHandle};
 use super::stats::Stats;
 use crate::scene::Scene;
 
@@ -56,104 +53,28 @@ impl Frame {
     }
 }
 
-/// What the UI can read without waiting.
-#[derive(Default)]
-struct Shared {
-    frame: Option<Frame>,
-    /// A pass that panicked: its message, shown in the UI.
-    error: Option<String>,
-}
-
-enum Message {
-    /// A request and its generation (the handle numbers them, so that frames of coalesced
-    /// requests still carry the number the UI waits for).
-    Render(Box<RenderRequest>, u64),
-    Stop,
-}
-
 /// Preview passes render at 1/PREVIEW_DIVISOR of the resolution in each direction.
 pub const PREVIEW_DIVISOR: u32 = 4;
 
 /// The handle the UI holds. Dropping it stops the worker.
-pub struct RenderHandle {
-    tx: Sender<Message>,
-    shared: Arc<Mutex<Shared>>,
-    /// Set to abandon the running pass (checked once per tile).
-    cancel: Arc<AtomicBool>,
-    generation: u64,
-    thread: Option<JoinHandle<()>>,
-}
+pub type RenderHandle = WorkerHandle<RenderWork>;
 
-impl RenderHandle {
-    /// Starts the worker; `notify` is called after each published frame (a UI passes
+impl WorkerHandle<RenderWork> {
+    /// Starts the render worker; `notify` is called after each published frame (a UI passes
     /// `egui::Context::request_repaint`). `threads` = 0 uses every core.
     pub fn spawn(threads: usize, notify: Box<dyn Fn() + Send>) -> std::io::Result<Self> {
-        let (tx, rx) = mpsc::channel();
-        let shared = Arc::new(Mutex::new(Shared::default()));
-        let cancel = Arc::new(AtomicBool::new(false));
-        let pool = super::worker_pool(threads, "portalview-render")?;
-        let worker = Worker {
-            rx,
-            shared: shared.clone(),
-            cancel: cancel.clone(),
+        WorkerHandle::new(
+            RenderWork { job: None },
+            "portalview-render",
+            threads,
             notify,
-            pool,
-        };
-        let thread = std::thread::Builder::new()
-            .name("portalview-worker".into())
-            .spawn(move || worker.run())?;
-        Ok(RenderHandle {
-            tx,
-            shared,
-            cancel,
-            generation: 0,
-            thread: Some(thread),
-        })
-    }
-
-    /// Replaces what is rendered; the running pass is abandoned at once. Returns the request's
-    /// generation, which its frames carry.
-    pub fn request(&mut self, request: RenderRequest) -> u64 {
-        self.generation += 1;
-        self.cancel.store(true, Ordering::Relaxed);
-        // A send fails only if the worker is gone; its error slot then says why.
-        let _ = self
-            .tx
-            .send(Message::Render(Box::new(request), self.generation));
-        self.generation
-    }
-
-    /// The newest frame, if the worker is not publishing at this very moment.
-    pub fn latest(&self) -> Option<Frame> {
-        self.shared.try_lock().ok()?.frame.clone()
-    }
-
-    /// A failure of the worker, if any.
-    pub fn error(&self) -> Option<String> {
-        self.shared.try_lock().ok()?.error.clone()
-    }
-
-    pub fn generation(&self) -> u64 {
-        self.generation
+        )
     }
 }
 
-impl Drop for RenderHandle {
-    fn drop(&mut self) {
-        self.cancel.store(true, Ordering::Relaxed);
-        let _ = self.tx.send(Message::Stop);
-        if let Some(thread) = self.thread.take() {
-            let _ = thread.join();
-        }
-    }
-}
-
-struct Worker {
-    rx: Receiver<Message>,
-    shared: Arc<Mutex<Shared>>,
-    cancel: Arc<AtomicBool>,
-    notify: Box<dyn Fn() + Send>,
-    pool: rayon::ThreadPool,
+/// Accumulates passes of the newest request.
+pub struct RenderWork {
+    job: Option<Job>,
 }
 
 /// The request being accumulated.
@@ -172,69 +93,55 @@ struct Job {
 /// Full-resolution frames are published at most this often (the UI uploads each one).
 const PUBLISH_INTERVAL: Duration = Duration::from_millis(100);
 
-impl Worker {
-    fn run(self) {
-        let mut job: Option<Job> = None;
-        loop {
-            // Idle or paused: wait for a message. Working: take any that arrived.
-            let working = job.as_ref().is_some_and(|j| !j.request.paused);
-            let message = if working {
-                self.rx.try_recv().ok()
-            } else {
-                match self.rx.recv_timeout(Duration::from_secs(3600)) {
-                    Ok(m) => Some(m),
-                    Err(RecvTimeoutError::Timeout) => continue,
-                    Err(RecvTimeoutError::Disconnected) => return,
-                }
-            };
-            match message {
-                Some(Message::Stop) => return,
-                Some(Message::Render(request, generation)) => {
-                    // Only the newest request matters; skip any that queued behind it.
-                    let (mut request, mut generation) = (request, generation);
-                    while let Ok(next) = self.rx.try_recv() {
-                        match next {
-                            Message::Render(r, g) => (request, generation) = (r, g),
-                            Message::Stop => return,
-                        }
-                    }
-                    self.cancel.store(false, Ordering::Relaxed);
-                    let film = Film::new(request.width.max(1), request.height.max(1));
-                    job = Some(Job {
-                        request: *request,
-                        generation,
-                        film,
-                        stats: Stats::default(),
-                        elapsed: Duration::ZERO,
-                        preview_done: false,
-                        primary: None,
-                        last_publish: None,
-                    });
-                    continue;
-                }
-                None => {}
-            }
-            if let Some(j) = job.as_mut()
-                && let Err(message) = self.step(j)
-            {
-                if let Ok(mut shared) = self.shared.lock() {
-                    shared.error = Some(message);
-                }
-                (self.notify)();
-                job = None;
-            }
+impl Work for RenderWork {
+    type Request = RenderRequest;
+    type Frame = Frame;
+
+    fn start(&mut self, request: RenderRequest, generation: u64) {
+        let film = Film::new(request.width.max(1), request.height.max(1));
+        self.job = Some(Job {
+            request,
+            generation,
+            film,
+            stats: Stats::default(),
+            elapsed: Duration::ZERO,
+            preview_done: false,
+            primary: None,
+            last_publish: None,
+        });
+    }
+
+    fn set_paused(&mut self, paused: bool) {
+        if let Some(job) = self.job.as_mut() {
+            job.request.paused = paused;
         }
     }
 
+    fn has_work(&self) -> bool {
+        self.job.as_ref().is_some_and(|j| !j.request.paused)
+    }
+
+    fn step(&mut self, out: &Outbox<Frame>) -> Result<(), String> {
+        match self.job.as_mut() {
+            Some(job) => job.step(out),
+            None => Ok(()),
+        }
+    }
+
+    fn stop(&mut self) {
+        self.job = None;
+    }
+}
+
+impl Job {
     /// Renders one pass of the job (the preview first) and publishes it.
-    fn step(&self, job: &mut Job) -> Result<(), String> {
+    fn step(&mut self, out: &Outbox<Frame>) -> Result<(), String> {
+        let job = self;
         let request = &job.request;
         if job.preview_done && job.primary.is_none() {
             let (scene, w, h) = (&request.scene, job.film.width, job.film.height);
             let brute_force = request.brute_force_regions;
-            let primary = self
-                .pool
-                .install(|| PrimaryBuffer::compute(scene, w, h, brute_force));
+            let primary = out.install(|| PrimaryBuffer::compute(scene, w, h, brute_force));
             job.primary = Some(Arc::new(primary));
         }
         let request = &job.request;
@@ -242,34 +149,23 @@ impl Worker {
         let start = Instant::now();
         let (width, height, spp) = (job.film.width, job.film.height, job.film.spp);
         let preview_done = job.preview_done;
-        let cancel: &AtomicBool = &self.cancel;
-        let outcome = std::panic::catch_unwind(AssertUnwindSafe(|| {
-            self.pool.install(|| {
-                if preview_done {
-                    render_pass(&integrator, width, height, spp, cancel).map(|r| (r, None))
-                } else {
-                    let (w, h) = preview_size(width, height);
-                    render_pass(&integrator, w, h, 0, cancel).map(|r| (r, Some((w, h))))
-                }
-            })
-        }));
-        let pass_time = start.elapsed();
-        let ((pixels, stats), preview) = match outcome {
-            Ok(Ok(result)) => result,
-            // A newer request arrived: it is handled on the next turn.
-            Ok(Err(_cancelled)) => return Ok(()),
-            Err(panic) => {
-                let what = panic
-                    .downcast_ref::<&str>()
-                    .map(|s| s.to_string())
-                    .or_else(|| panic.downcast_ref::<String>().cloned())
-                    .unwrap_or_else(|| "unknown panic".into());
-                return Err(format!("the renderer failed: {what}"));
+        let cancel = out.cancel();
+        let outcome = out.install(|| {
+            if preview_done {
+                render_pass(&integrator, width, height, spp, cancel).map(|r| (r, None))
+            } else {
+                let (w, h) = preview_size(width, height);
+                render_pass(&integrator, w, h, 0, cancel).map(|r| (r, Some((w, h))))
             }
+        });
+        let pass_time = start.elapsed();
+        let Ok(((pixels, stats), preview)) = outcome else {
+            // A newer request arrived: it is handled on the next turn.
+            return Ok(());
         };
         if let Some((w, h)) = preview {
             job.preview_done = true;
-            self.publish(Frame {
+            out.publish(Frame {
                 generation: job.generation,
                 width: w,
                 height: h,
@@ -290,7 +186,7 @@ impl Worker {
             .is_none_or(|t| t.elapsed() >= PUBLISH_INTERVAL);
         if due {
             job.last_publish = Some(Instant::now());
-            self.publish(Frame {
+            out.publish(Frame {
                 generation: job.generation,
                 width: job.film.width,
                 height: job.film.height,
@@ -303,14 +199,6 @@ impl Worker {
             });
         }
         Ok(())
-    }
-
-    fn publish(&self, frame: Frame) {
-        if let Ok(mut shared) = self.shared.lock() {
-            shared.frame = Some(frame);
-            shared.error = None;
-        }
-        (self.notify)();
     }
 }
 

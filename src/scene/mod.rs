@@ -1,27 +1,24 @@
 //! Scenes: what is authored (glTF, built-ins), validated and made ready to trace.
 
-pub mod builtin;
 pub mod bvh;
-pub mod camera;
-pub mod desc;
-pub mod gltf_io;
 
 use glam::{Vec2, Vec3};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
+use crate::asset::desc::{PortalDesc, SceneDesc};
+use crate::asset::{builtin, gltf};
+use crate::camera::Camera;
 use crate::light::area::AreaLight;
 use crate::light::portal::{Portal, PortalError};
 use crate::material::Material;
 use bvh::Bvh;
-use camera::Camera;
-use desc::{PortalDesc, SceneDesc};
 
 /// Why a scene cannot be used.
 #[derive(Debug, thiserror::Error)]
 pub enum SceneError {
     #[error(transparent)]
-    Gltf(#[from] gltf_io::GltfError),
+    Gltf(#[from] gltf::GltfError),
     #[error("{file}: {error}")]
     Portal { file: String, error: PortalError },
     #[error("{file}: mesh node '{node}' references material {material}, which does not exist")]
@@ -169,7 +166,7 @@ impl Scene {
             bounds,
         });
         let camera = match desc.camera {
-            Some(c) => Camera::from_desc(&c),
+            Some(c) => c,
             None => Camera::framing(bounds.0, bounds.1, 4.0 / 3.0),
         };
         let portals = validate_portals(&desc.portals, &geometry.lights, file)?;
@@ -185,7 +182,7 @@ impl Scene {
 
     /// Loads a `.gltf`/`.glb` file.
     pub fn load(path: &Path) -> Result<Scene, SceneError> {
-        let desc = gltf_io::load_gltf(path)?;
+        let desc = gltf::load_gltf(path)?;
         let mut scene = Scene::from_desc(desc, &path.display().to_string())?;
         scene.source = Some(path.to_owned());
         Ok(scene)

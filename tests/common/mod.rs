@@ -2,9 +2,10 @@
 #![allow(dead_code)]
 
 use glam::{Mat4, Vec3};
-use portalview::scene::desc::{CameraDesc, MaterialDesc, PortalDesc, SceneDesc};
+use portalview::asset::desc::{MaterialDesc, PortalDesc, SceneDesc};
+use portalview::camera::Camera;
 
-pub use portalview::scene::builtin::flat_mesh as flat;
+pub use portalview::asset::builtin::flat_mesh as flat;
 
 /// A portal from a convex polygon given in world space.
 pub fn portal(name: &str, target: &str, alpha: f32, corners: &[Vec3]) -> PortalDesc {
@@ -33,8 +34,8 @@ pub fn square(c: Vec3, n: Vec3, h: f32) -> Vec<Vec3> {
     ]
 }
 
-pub fn camera(eye: Vec3, target: Vec3) -> Option<CameraDesc> {
-    Some(CameraDesc {
+pub fn camera(eye: Vec3, target: Vec3) -> Option<Camera> {
+    Some(Camera {
         eye,
         target,
         up: Vec3::Y,

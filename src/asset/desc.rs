@@ -3,6 +3,8 @@
 
 use glam::{Mat4, Vec3};
 
+use crate::camera::Camera;
+
 /// A glTF metallic-roughness material, reduced to what the renderer uses.
 #[derive(Clone, Debug, PartialEq)]
 pub struct MaterialDesc {
@@ -80,25 +82,33 @@ pub struct PortalDesc {
     pub node_index: Option<usize>,
 }
 
+/// A portal's alpha when the file does not give one: the thesis's value.
+pub const DEFAULT_PORTAL_ALPHA: f32 = 0.1;
+
 impl PortalDesc {
+    /// A new portal (not from a file) over the convex polygon `corners`, in world space, with
+    /// the default alpha; its mesh is the polygon's fan.
+    pub fn from_polygon(name: String, target: String, corners: &[Vec3]) -> Self {
+        let local_triangles = corners
+            .split_first()
+            .map(|(&first, rest)| rest.windows(2).map(|w| [first, w[0], w[1]]).collect())
+            .unwrap_or_default();
+        PortalDesc {
+            name,
+            target,
+            alpha: DEFAULT_PORTAL_ALPHA,
+            local_triangles,
+            world_from_local: Mat4::IDENTITY,
+            node_index: None,
+        }
+    }
+
     pub fn world_triangles(&self) -> Vec<[Vec3; 3]> {
         self.local_triangles
             .iter()
             .map(|t| t.map(|p| self.world_from_local.transform_point3(p)))
             .collect()
     }
-}
-
-/// A perspective camera looking from `eye` at `target`.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct CameraDesc {
-    pub eye: Vec3,
-    pub target: Vec3,
-    pub up: Vec3,
-    /// Vertical field of view in radians.
-    pub yfov: f32,
-    /// Width over height.
-    pub aspect: f32,
 }
 
 /// A whole scene as authored.
@@ -109,5 +119,5 @@ pub struct SceneDesc {
     pub meshes: Vec<MeshDesc>,
     pub portals: Vec<PortalDesc>,
     /// The file's first camera, if any (else one is made to frame the scene).
-    pub camera: Option<CameraDesc>,
+    pub camera: Option<Camera>,
 }

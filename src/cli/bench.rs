@@ -2,87 +2,18 @@
 //! strategy, on the built-in scenes. Multithreaded like the renderer, so the rays/s compare.
 
 use anyhow::Result;
-use glam::Vec3;
 use rayon::prelude::*;
-use std::cell::RefCell;
 use std::time::{Duration, Instant};
 
-use crate::cli::{BenchArgs, render_for};
+use clap::Args;
+
+use super::render::render_for;
+use crate::asset::builtin;
 use crate::light::Strategy;
 use crate::render::integrator::{Integrator, RenderSettings};
-use crate::render::stats::Stats;
-use crate::render::{Tiles, render_tile};
-use crate::scene::bvh::{Bvh, Hit, Tracer};
-use crate::scene::{Scene, builtin};
-
-/// One ray the renderer traced, kept to be replayed through the raw traversal.
-#[derive(Clone, Copy, Debug)]
-pub struct RecordedRay {
-    pub origin: Vec3,
-    pub dir: Vec3,
-    pub tmin: f32,
-    pub tmax: f32,
-    /// A closest-hit query (else an occlusion query).
-    pub closest: bool,
-}
-
-/// Traces through the scene's BVH, keeping every ray.
-pub struct Recorder<'a> {
-    bvh: &'a Bvh,
-    rays: RefCell<Vec<RecordedRay>>,
-}
-
-impl<'a> Recorder<'a> {
-    pub fn new(bvh: &'a Bvh) -> Self {
-        Recorder {
-            bvh,
-            rays: RefCell::new(Vec::new()),
-        }
-    }
-
-    /// The rays traced so far, in order.
-    pub fn into_rays(self) -> Vec<RecordedRay> {
-        self.rays.into_inner()
-    }
-
-    fn keep(&self, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32, closest: bool) {
-        self.rays.borrow_mut().push(RecordedRay {
-            origin,
-            dir,
-            tmin,
-            tmax,
-            closest,
-        });
-    }
-}
-
-impl Tracer for Recorder<'_> {
-    fn closest_hit(&self, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> Option<Hit> {
-        self.keep(origin, dir, tmin, tmax, true);
-        self.bvh.closest_hit(origin, dir, tmin, tmax)
-    }
-
-    fn occluded(&self, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> bool {
-        self.keep(origin, dir, tmin, tmax, false);
-        self.bvh.occluded(origin, dir, tmin, tmax)
-    }
-}
-
-/// The rays of one pass of the renderer, one list per tile in the renderer's order, and the
-/// rays the renderer's statistics counted for that pass.
-fn record_pass(integrator: &Integrator, size: u32) -> (Vec<Vec<RecordedRay>>, u64) {
-    let tiles = Tiles::new(size, size);
-    let rays = integrator.scene().camera.rays(1.0);
-    let mut stats = Stats::default();
-    let recorded = (0..tiles.count())
-        .map(|tile| {
-            let recorder = Recorder::new(&integrator.scene().geometry.bvh);
-            render_tile(integrator, &recorder, &rays, tiles, tile, 0, &mut stats);
-            recorder.into_rays()
-        })
-        .collect();
-    (recorded, stats.rays())
-}
+use crate::render::record::{RecordedRay, record_pass};
+use crate::scene::Scene;
+use crate::scene::bvh::Bvh;
 
 /// Rays per second of the raw traversal over the recorded rays that `keep` selects, tiles
 /// spread over all cores as the renderer spreads them, repeated for `budget`.
@@ -119,6 +50,21 @@ fn replay(
     count as f64 / start.elapsed().as_secs_f64()
 }
 
+#[derive(Args, Debug, Clone)]
+pub struct BenchArgs {
+    /// Seconds per measurement.
+    #[arg(long, default_value_t = 2.0)]
+    pub seconds: f64,
+    /// Image size for the render measurements.
+    #[arg(long, default_value_t = 256)]
+    pub size: u32,
+    /// Measure the viewer instead (headless): UI frame time while the renderer saturates the
+    /// CPU, and the time from a portal edit to the first new preview.
+    #[arg(long)]
+    pub ui: bool,
+}
+
+/// `portalview bench`: raw traversal against the renderer, and each strategy's cost.
 pub fn run(args: &BenchArgs) -> Result<()> {
     let budget = Duration::from_secs_f64(args.seconds);
     println!(

@@ -7,21 +7,18 @@
 
 use glam::Vec3;
 use indicatif::ProgressBar;
-use std::panic::AssertUnwindSafe;
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::mpsc::{self, Receiver, Sender};
-use std::sync::{Arc, Mutex};
-use std::thread::JoinHandle;
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use super::Cancelled;
-use super::integrator::RenderSettings;
 use crate::compare::{
     ConvergencePoint, EqualTime, ImageSpec, Reference, ReferenceBudget, ReferenceOrigin, cache_key,
     find_cached_reference, load_reference, mse, relmse, render_reference, store_reference,
 };
 use crate::light::Strategy;
+use crate::render::Cancelled;
+use crate::render::integrator::RenderSettings;
+use crate::render::shell::{Outbox, Work, WorkerHandle};
 use crate::scene::Scene;
 
 /// Where the reference comes from.
@@ -130,100 +127,30 @@ pub const PUBLISH_INTERVAL: Duration = Duration::from_millis(100);
 /// A history point is recorded when a strategy's time has grown by this factor since its last.
 pub const HISTORY_FACTOR: f64 = 1.1;
 
-enum Message {
-    Start(Box<CompareRequest>, u64),
-    Pause(bool),
-    Stop,
-}
-
-/// What the UI can read without waiting.
-#[derive(Default)]
-struct Shared {
-    frame: Option<Arc<CompareFrame>>,
-}
-
 /// The handle the UI holds. Dropping it stops the worker (the running pass is abandoned).
-pub struct CompareHandle {
-    tx: Sender<Message>,
-    shared: Arc<Mutex<Shared>>,
-    /// Set to abandon the running pass or reference render (checked once per tile).
-    cancel: Arc<AtomicBool>,
-    generation: u64,
-    thread: Option<JoinHandle<()>>,
-}
+pub type CompareHandle = WorkerHandle<CompareWork>;
 
-impl CompareHandle {
+impl WorkerHandle<CompareWork> {
     /// Starts the worker, idle; `notify` is called after each published frame. `threads` = 0
     /// uses every core.
     pub fn spawn(threads: usize, notify: Box<dyn Fn() + Send>) -> std::io::Result<Self> {
-        let (tx, rx) = mpsc::channel();
-        let shared = Arc::new(Mutex::new(Shared::default()));
-        let cancel = Arc::new(AtomicBool::new(false));
-        let pool = super::worker_pool(threads, "portalview-compare")?;
-        let worker = Worker {
-            rx,
-            shared: shared.clone(),
-            cancel: cancel.clone(),
-            notify,
-            pool,
+        let work = CompareWork {
+            job: None,
             known: None,
         };
-        let thread = std::thread::Builder::new()
-            .name("portalview-compare".into())
-            .spawn(move || worker.run())?;
-        Ok(CompareHandle {
-            tx,
-            shared,
-            cancel,
-            generation: 0,
-            thread: Some(thread),
-        })
+        WorkerHandle::new(work, "portalview-compare", threads, notify)
     }
 
     /// Starts a new comparison; the running one is abandoned at once. Returns the request's
     /// generation, which its frames carry.
     pub fn start(&mut self, request: CompareRequest) -> u64 {
-        self.generation += 1;
-        self.send(Message::Start(Box::new(request), self.generation));
-        self.generation
-    }
-
-    /// Pauses (abandoning the running pass, or a reference render) or resumes.
-    pub fn set_paused(&self, paused: bool) {
-        self.send(Message::Pause(paused));
-    }
-
-    fn send(&self, message: Message) {
-        self.cancel.store(true, Ordering::Relaxed);
-        // A send fails only if the worker is gone, which its last frame shows.
-        let _ = self.tx.send(message);
-    }
-
-    /// The newest frame of any request, if the worker is not publishing at this very moment.
-    pub fn latest(&self) -> Option<Arc<CompareFrame>> {
-        self.shared.try_lock().ok()?.frame.clone()
-    }
-
-    pub fn generation(&self) -> u64 {
-        self.generation
+        self.request(Box::new(request))
     }
 }
 
-impl Drop for CompareHandle {
-    fn drop(&mut self) {
-        self.send(Message::Stop);
-        if let Some(thread) = self.thread.take() {
-            let _ = thread.join();
-        }
-    }
-}
-
-struct Worker {
-    rx: Receiver<Message>,
-    shared: Arc<Mutex<Shared>>,
-    cancel: Arc<AtomicBool>,
-    notify: Box<dyn Fn() + Send>,
-    pool: rayon::ThreadPool,
+/// Runs the newest comparison.
+pub struct CompareWork {
+    job: Option<Job>,
     /// The newest reference obtained, reused by later requests it fits.
     known: Option<Arc<Reference>>,
 }
@@ -273,6 +200,11 @@ impl Job {
         }
     }
 
+    fn publish(&mut self, out: &Outbox<Arc<CompareFrame>>) {
+        self.last_publish = Some(Instant::now());
+        out.publish(Arc::new(self.frame()));
+    }
+
     fn frame(&self) -> CompareFrame {
         let runs = match &self.schedule {
             Some(schedule) => schedule
@@ -316,15 +248,6 @@ impl Job {
     }
 }
 
-/// A panic's message.
-fn panic_message(panic: &(dyn std::any::Any + Send)) -> String {
-    panic
-        .downcast_ref::<&str>()
-        .map(|s| s.to_string())
-        .or_else(|| panic.downcast_ref::<String>().cloned())
-        .unwrap_or_else(|| "unknown panic".into())
-}
-
 /// Whether `known` can stand in for the reference `request` asks for.
 fn fits(known: &Reference, request: &CompareRequest) -> bool {
     match &request.reference {
@@ -353,55 +276,50 @@ fn exr_size(path: &Path) -> Result<(u32, u32), String> {
     Ok((size.width() as u32, size.height() as u32))
 }
 
-impl Worker {
-    fn run(mut self) {
-        let mut job: Option<Job> = None;
-        loop {
-            // Idle or paused: wait for a message. Working: take any that arrived.
-            let working = job.as_ref().is_some_and(|j| !j.paused && !j.idle);
-            let first = if working {
-                self.rx.try_recv().ok()
-            } else {
-                match self.rx.recv() {
-                    Ok(m) => Some(m),
-                    Err(_) => return,
-                }
-            };
-            if let Some(first) = first {
-                // Take everything queued: only the newest request and pause state matter.
-                let mut message = Some(first);
-                while let Some(m) = message {
-                    match m {
-                        Message::Stop => return,
-                        Message::Start(request, generation) => {
-                            job = Some(Job::new(*request, generation));
-                        }
-                        Message::Pause(paused) => {
-                            if let Some(j) = job.as_mut() {
-                                j.paused = paused;
-                            }
-                        }
-                    }
-                    message = self.rx.try_recv().ok();
-                }
-                self.cancel.store(false, Ordering::Relaxed);
-                if let Some(j) = job.as_mut()
-                    && (j.schedule.is_some() || !j.paused)
-                {
-                    self.publish(j);
-                }
-                continue;
-            }
-            if let Some(j) = job.as_mut() {
-                self.advance(j);
-            }
+impl Work for CompareWork {
+    type Request = Box<CompareRequest>;
+    type Frame = Arc<CompareFrame>;
+
+    fn start(&mut self, request: Box<CompareRequest>, generation: u64) {
+        self.job = Some(Job::new(*request, generation));
+    }
+
+    fn set_paused(&mut self, paused: bool) {
+        if let Some(job) = self.job.as_mut() {
+            job.paused = paused;
         }
     }
 
+    fn has_work(&self) -> bool {
+        self.job.as_ref().is_some_and(|j| !j.paused && !j.idle)
+    }
+
+    fn after_messages(&mut self, out: &Outbox<Arc<CompareFrame>>) {
+        if let Some(job) = self.job.as_mut()
+            && (job.schedule.is_some() || !job.paused)
+        {
+            job.publish(out);
+        }
+    }
+
+    fn step(&mut self, out: &Outbox<Arc<CompareFrame>>) -> Result<(), String> {
+        if let Some(mut job) = self.job.take() {
+            self.advance(&mut job, out);
+            self.job = Some(job);
+        }
+        Ok(())
+    }
+
+    fn stop(&mut self) {
+        self.job = None;
+    }
+}
+
+impl CompareWork {
     /// Obtains the reference, or renders one pass.
-    fn advance(&mut self, job: &mut Job) {
+    fn advance(&mut self, job: &mut Job, out: &Outbox<Arc<CompareFrame>>) {
         if job.schedule.is_none() {
-            match self.obtain_reference(job) {
+            match self.obtain_reference(job, out) {
                 Ok(reference) => {
                     self.known = Some(reference.clone());
                     job.width = reference.width;
@@ -442,7 +360,7 @@ impl Worker {
                     job.idle = true;
                 }
             }
-            self.publish(job);
+            job.publish(out);
             return;
         }
         let (Some(schedule), ReferenceStatus::Ready(reference)) =
@@ -451,26 +369,15 @@ impl Worker {
             job.idle = true;
             return;
         };
-        let cancel: &AtomicBool = &self.cancel;
-        let outcome = std::panic::catch_unwind(AssertUnwindSafe(|| {
-            self.pool.install(|| schedule.step(cancel))
-        }));
-        let i = match outcome {
-            Ok(Ok(Some(i))) => i,
-            Ok(Ok(None)) => {
+        let cancel = out.cancel();
+        let i = match out.install(|| schedule.step(cancel)) {
+            Ok(Some(i)) => i,
+            Ok(None) => {
                 job.idle = true;
                 return;
             }
-            Ok(Err(Cancelled)) => return,
-            Err(panic) => {
-                job.notes.push(format!(
-                    "the renderer failed: {}",
-                    panic_message(panic.as_ref())
-                ));
-                job.idle = true;
-                self.publish(job);
-                return;
-            }
+            // A message arrived: it is handled on the next turn.
+            Err(Cancelled) => return,
         };
         let run = &schedule.runs()[i];
         let mean = run.film.mean();
@@ -493,12 +400,16 @@ impl Worker {
             .last_publish
             .is_none_or(|t| t.elapsed() >= PUBLISH_INTERVAL)
         {
-            self.publish(job);
+            job.publish(out);
         }
     }
 
     /// The reference: known, cached, loaded or rendered. `Err(None)`: cancelled.
-    fn obtain_reference(&self, job: &mut Job) -> Result<Arc<Reference>, Option<String>> {
+    fn obtain_reference(
+        &self,
+        job: &mut Job,
+        out: &Outbox<Arc<CompareFrame>>,
+    ) -> Result<Arc<Reference>, Option<String>> {
         let request = &job.request;
         let known = [request.known_reference.as_ref(), self.known.as_ref()];
         if let Some(k) = known.into_iter().flatten().find(|k| fits(k, request)) {
@@ -506,7 +417,7 @@ impl Worker {
         }
         let progress = ProgressBar::hidden();
         job.reference = ReferenceStatus::Rendering(progress.clone());
-        self.publish(job);
+        job.publish(out);
         let request = &job.request;
         match &request.reference {
             ReferenceSource::File(path) => {
@@ -543,21 +454,11 @@ impl Worker {
                 {
                     return Ok(Arc::new(found));
                 }
-                let cancel: &AtomicBool = &self.cancel;
-                let outcome = std::panic::catch_unwind(AssertUnwindSafe(|| {
-                    self.pool.install(|| {
-                        render_reference(scene, image, seed, *budget, cancel, &progress)
-                    })
-                }));
-                let mut reference = match outcome {
-                    Ok(Ok(reference)) => reference,
-                    Ok(Err(Cancelled)) => return Err(None),
-                    Err(panic) => {
-                        return Err(Some(format!(
-                            "the reference render failed: {}",
-                            panic_message(panic.as_ref())
-                        )));
-                    }
+                let cancel = out.cancel();
+                let rendered = out
+                    .install(|| render_reference(scene, image, seed, *budget, cancel, &progress));
+                let Ok(mut reference) = rendered else {
+                    return Err(None);
                 };
                 if let Some(dir) = cache_dir
                     && let Err(e) = store_reference(dir, &mut reference)
@@ -568,14 +469,5 @@ impl Worker {
                 Ok(Arc::new(reference))
             }
         }
-    }
-
-    fn publish(&self, job: &mut Job) {
-        job.last_publish = Some(Instant::now());
-        let frame = Arc::new(job.frame());
-        if let Ok(mut shared) = self.shared.lock() {
-            shared.frame = Some(frame);
-        }
-        (self.notify)();
     }
 }

@@ -1,16 +1,14 @@
 //! Built-in scenes, made in code so that the viewer and the tests need no files:
 //! `lampshade` (the thesis's Figure 1) and `fig8a`, `fig8b`, `fig8c` (its Figure 8).
 
-use glam::{Mat4, Vec3};
+use glam::Vec3;
 use std::collections::HashMap;
 
-use super::desc::{CameraDesc, MaterialDesc, MeshDesc, PortalDesc, SceneDesc};
+use crate::asset::desc::{MaterialDesc, MeshDesc, PortalDesc, SceneDesc};
+use crate::camera::Camera;
 
 /// Names of the built-in scenes.
 pub const NAMES: [&str; 4] = ["lampshade", "fig8a", "fig8b", "fig8c"];
-
-/// The default `portal_light_probability`, METHOD.md's alpha.
-pub const DEFAULT_ALPHA: f32 = 0.1;
 
 /// The built-in scene `name`, if there is one.
 pub fn desc(name: &str) -> Option<SceneDesc> {
@@ -68,21 +66,12 @@ impl Builder {
     }
 
     fn portal(&mut self, name: &str, target: &str, corners: &[Vec3]) {
-        let local_triangles = (1..corners.len() - 1)
-            .map(|i| [corners[0], corners[i], corners[i + 1]])
-            .collect();
-        self.desc.portals.push(PortalDesc {
-            name: name.to_owned(),
-            target: target.to_owned(),
-            alpha: DEFAULT_ALPHA,
-            local_triangles,
-            world_from_local: Mat4::IDENTITY,
-            node_index: None,
-        });
+        let portal = PortalDesc::from_polygon(name.to_owned(), target.to_owned(), corners);
+        self.desc.portals.push(portal);
     }
 
     fn camera(&mut self, eye: Vec3, target: Vec3, yfov_degrees: f32) {
-        self.desc.camera = Some(CameraDesc {
+        self.desc.camera = Some(Camera {
             eye,
             target,
             up: Vec3::Y,

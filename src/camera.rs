@@ -1,10 +1,8 @@
-//! A perspective pinhole camera that looks from `eye` at `target`, with the orbit, pan and zoom
+//! A perspective pinhole camera (also what a scene description stores) that looks from `eye` at `target`, with the orbit, pan and zoom
 //! a viewer needs and the projection that draws 3D lines over the image.
 
 use glam::{Vec2, Vec3};
 use serde::{Deserialize, Serialize};
-
-use super::desc::CameraDesc;
 
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Camera {
@@ -45,24 +43,9 @@ impl RayGenerator {
 }
 
 impl Camera {
-    pub fn from_desc(d: &CameraDesc) -> Self {
-        Camera {
-            eye: d.eye,
-            target: d.target,
-            up: d.up,
-            yfov: d.yfov,
-            aspect: d.aspect,
-        }
-    }
-
-    pub fn to_desc(&self) -> CameraDesc {
-        CameraDesc {
-            eye: self.eye,
-            target: self.target,
-            up: self.up,
-            yfov: self.yfov,
-            aspect: self.aspect,
-        }
+    /// The image height for `width` that keeps the camera's aspect ratio.
+    pub fn height_for_width(&self, width: u32) -> u32 {
+        ((width as f32 / self.aspect.max(1e-3)).round() as u32).max(1)
     }
 
     /// A camera that frames the box `[lo, hi]` from the front-right, slightly above.

@@ -1,0 +1,647 @@
+//! Reading a document into a scene description: buffers, the node hierarchy, meshes in world
+//! space, materials, portals (from node `extras`) and the camera.
+
+use super::*;
+
+/// The bytes of every buffer, each at least as long as its `byteLength`.
+pub(super) fn load_buffers<'b>(
+    file: &Path,
+    root: &json::Root,
+    bin: Option<&'b [u8]>,
+) -> Result<Vec<Cow<'b, [u8]>>, GltfError> {
+    let base = file.parent().unwrap_or(Path::new(""));
+    let mut buffers = Vec::with_capacity(root.buffers.len());
+    for (i, buffer) in root.buffers.iter().enumerate() {
+        let at = label("buffer", i, buffer.name.as_deref());
+        let data = match (buffer.uri.as_deref(), bin) {
+            (Some(uri), _) => Cow::Owned(read_uri(file, base, &at, uri)?),
+            (None, Some(bin)) if i == 0 => Cow::Borrowed(bin),
+            (None, _) if i == 0 => {
+                return Err(invalid(
+                    file,
+                    at,
+                    "has no uri, and there is no GLB BIN chunk",
+                ));
+            }
+            (None, _) => {
+                return Err(invalid(
+                    file,
+                    at,
+                    "has no uri (only buffer 0 may be the GLB BIN chunk)",
+                ));
+            }
+        };
+        let declared = buffer.byte_length.0;
+        if (data.len() as u64) < declared {
+            return Err(invalid(
+                file,
+                at,
+                format!(
+                    "holds {} bytes but declares byteLength {declared}",
+                    data.len()
+                ),
+            ));
+        }
+        buffers.push(data);
+    }
+    Ok(buffers)
+}
+
+pub(super) fn label(kind: &str, index: usize, name: Option<&str>) -> String {
+    match name {
+        Some(name) => format!("{kind} {index} \"{name}\""),
+        None => format!("{kind} {index}"),
+    }
+}
+
+pub(super) fn node_label(index: usize, node: &json::Node) -> String {
+    label("node", index, node.name.as_deref())
+}
+
+/// The name a node goes by in a `SceneDesc`.
+pub(super) fn node_name(index: usize, node: &json::Node) -> String {
+    node.name.clone().unwrap_or_else(|| format!("node {index}"))
+}
+
+/// One node reached from the scene's roots, in depth-first order.
+pub(super) struct Visit {
+    pub(super) node: usize,
+    pub(super) world: Mat4,
+    pub(super) parent_world: Mat4,
+}
+
+/// The scene that is loaded: the default one, else the first.
+pub(super) fn used_scene(root: &json::Root) -> Option<usize> {
+    match root.scene {
+        Some(s) => Some(s.value()),
+        None => (!root.scenes.is_empty()).then_some(0),
+    }
+}
+
+/// The scene's root nodes; without scenes, every node that is nobody's child.
+pub(super) fn scene_roots(root: &json::Root) -> Vec<usize> {
+    if let Some(scene) = used_scene(root).and_then(|s| root.scenes.get(s)) {
+        return scene.nodes.iter().map(|n| n.value()).collect();
+    }
+    let mut is_child = vec![false; root.nodes.len()];
+    for child in root.nodes.iter().flat_map(|n| n.children.iter().flatten()) {
+        if let Some(flag) = is_child.get_mut(child.value()) {
+            *flag = true;
+        }
+    }
+    (0..root.nodes.len()).filter(|&i| !is_child[i]).collect()
+}
+
+/// Every node of the scene with its world transform (world = parent × local).
+pub(super) fn walk_scene(file: &Path, root: &json::Root) -> Result<Vec<Visit>, GltfError> {
+    let mut visited = vec![false; root.nodes.len()];
+    let mut visits = Vec::new();
+    // An explicit stack: a deep hierarchy must not overflow the thread's stack.
+    let mut stack: Vec<(usize, Mat4)> = scene_roots(root)
+        .into_iter()
+        .rev()
+        .map(|i| (i, Mat4::IDENTITY))
+        .collect();
+    while let Some((i, parent_world)) = stack.pop() {
+        let (Some(node), Some(seen)) = (root.nodes.get(i), visited.get_mut(i)) else {
+            return Err(invalid(file, format!("node {i}"), "does not exist"));
+        };
+        let at = node_label(i, node);
+        if *seen {
+            return Err(invalid(
+                file,
+                at,
+                "is reached twice in the scene (a node may have one parent, and no cycles)",
+            ));
+        }
+        *seen = true;
+        let world = parent_world * local_matrix(file, node, &at)?;
+        if !world.is_finite() {
+            return Err(invalid(file, at, "its world transform is not finite"));
+        }
+        if let Some(children) = &node.children {
+            stack.extend(children.iter().rev().map(|c| (c.value(), world)));
+        }
+        visits.push(Visit {
+            node: i,
+            world,
+            parent_world,
+        });
+    }
+    Ok(visits)
+}
+
+pub(super) fn local_matrix(file: &Path, node: &json::Node, at: &str) -> Result<Mat4, GltfError> {
+    if let Some(m) = node.matrix {
+        let m = Mat4::from_cols_array(&m);
+        if !m.is_finite() {
+            return Err(invalid(file, format!("{at}, matrix"), "is not finite"));
+        }
+        return Ok(m);
+    }
+    let translation = Vec3::from_array(node.translation.unwrap_or([0.0; 3]));
+    let scale = Vec3::from_array(node.scale.unwrap_or([1.0; 3]));
+    let rotation = Quat::from_array(node.rotation.map_or([0.0, 0.0, 0.0, 1.0], |q| q.0));
+    if !translation.is_finite() {
+        return Err(invalid(file, format!("{at}, translation"), "is not finite"));
+    }
+    if !scale.is_finite() {
+        return Err(invalid(file, format!("{at}, scale"), "is not finite"));
+    }
+    if !rotation.is_finite() || rotation.length() < 1e-6 {
+        return Err(invalid(
+            file,
+            format!("{at}, rotation"),
+            "is not a unit quaternion",
+        ));
+    }
+    Ok(Mat4::from_scale_rotation_translation(
+        scale,
+        rotation.normalize(),
+        translation,
+    ))
+}
+
+/// A primitive's vertices and triangles as stored (local space).
+pub(super) struct Geometry {
+    pub(super) positions: Vec<Vec3>,
+    pub(super) normals: Option<Vec<Vec3>>,
+    pub(super) triangles: Vec<[u32; 3]>,
+}
+
+/// A parsed document with its buffers, and the file to name in errors.
+pub(super) struct Doc<'a> {
+    pub(super) file: &'a Path,
+    pub(super) root: &'a json::Root,
+    pub(super) buffers: &'a [Cow<'a, [u8]>],
+}
+
+impl<'a> Doc<'a> {
+    /// A triangle primitive's vertices and triangles, every index checked.
+    pub(super) fn geometry(
+        &self,
+        primitive: &json::mesh::Primitive,
+        at: &str,
+    ) -> Result<Geometry, GltfError> {
+        let Checked::Valid(mode) = primitive.mode else {
+            return Err(self.invalid(at, "mode is invalid"));
+        };
+        if !matches!(
+            mode,
+            Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan
+        ) {
+            return Err(self.invalid(
+                at,
+                format!(
+                    "mode {} is not supported (only triangles, strips and fans)",
+                    mode_name(mode)
+                ),
+            ));
+        }
+        let Some(position) = primitive
+            .attributes
+            .get(&Checked::Valid(Semantic::Positions))
+        else {
+            return Err(self.invalid(at, "has no POSITION attribute"));
+        };
+        let positions = self.read_vec3s(position.value(), &format!("{at}, POSITION"))?;
+        let normals = match primitive.attributes.get(&Checked::Valid(Semantic::Normals)) {
+            None => None,
+            Some(normal) => {
+                let normals = self.read_vec3s(normal.value(), &format!("{at}, NORMAL"))?;
+                if normals.len() != positions.len() {
+                    return Err(self.invalid(
+                        format!("{at}, NORMAL"),
+                        format!(
+                            "has {} elements but POSITION has {}",
+                            normals.len(),
+                            positions.len()
+                        ),
+                    ));
+                }
+                Some(normals)
+            }
+        };
+        // MAX_ELEMENTS keeps vertex numbers within u32.
+        let corners = match primitive.indices {
+            Some(indices) => self.read_indices(indices.value(), &format!("{at}, indices"))?,
+            None => (0..positions.len() as u32).collect(),
+        };
+        if let Some((k, i)) = corners
+            .iter()
+            .enumerate()
+            .find(|&(_, &i)| i as usize >= positions.len())
+        {
+            return Err(self.invalid(
+                format!("{at}, indices"),
+                format!(
+                    "index {i} (entry {k}) is out of range for {} vertices",
+                    positions.len()
+                ),
+            ));
+        }
+        if mode == Mode::Triangles && corners.len() % 3 != 0 {
+            return Err(self.invalid(
+                at,
+                format!("{} indices do not make whole triangles", corners.len()),
+            ));
+        }
+        Ok(Geometry {
+            positions,
+            normals,
+            triangles: triangulate(mode, &corners),
+        })
+    }
+
+    /// Everything the scene holds: materials, world-space meshes, portals and the camera.
+    pub(super) fn scene(&self, visits: &[Visit]) -> Result<SceneDesc, GltfError> {
+        let mut materials = self
+            .root
+            .materials
+            .iter()
+            .enumerate()
+            .map(|(i, m)| material_desc(self.file, i, m))
+            .collect::<Result<Vec<_>, _>>()?;
+        let mut default_material = None;
+        let mut meshes = Vec::new();
+        let mut portals = Vec::new();
+        let mut camera = None;
+        let mut budget = Budget::default();
+        for visit in visits {
+            let Some(node) = self.root.nodes.get(visit.node) else {
+                return Err(self.invalid(format!("node {}", visit.node), "does not exist"));
+            };
+            let at = node_label(visit.node, node);
+            let extras = node_extras(self.file, node, &at)?;
+            if let Some(portal) = portal_extras(self.file, extras.as_ref(), &at)? {
+                portals.push(self.portal(visit, node, &at, portal, &mut budget)?);
+                continue;
+            }
+            if let Some(mesh_index) = node.mesh {
+                let Some(mesh) = self.root.meshes.get(mesh_index.value()) else {
+                    return Err(self.invalid(at, format!("mesh {} does not exist", mesh_index)));
+                };
+                let mesh_at = format!(
+                    "{at}, {}",
+                    label("mesh", mesh_index.value(), mesh.name.as_deref())
+                );
+                for (p, primitive) in mesh.primitives.iter().enumerate() {
+                    let at = format!("{mesh_at}, primitive {p}");
+                    let geometry = self.geometry(primitive, &at)?;
+                    budget.spend(self.file, &at, &geometry)?;
+                    let material = match primitive.material {
+                        Some(m) if m.value() < materials.len() => m.value(),
+                        Some(m) => {
+                            return Err(self.invalid(at, format!("material {m} does not exist")));
+                        }
+                        None => *default_material.get_or_insert_with(|| {
+                            materials.push(default_material_desc());
+                            materials.len() - 1
+                        }),
+                    };
+                    let name = node_name(visit.node, node);
+                    let Some(mesh) = world_mesh(geometry, visit.world, name, material) else {
+                        return Err(self.invalid(at, "a world-space position is not finite"));
+                    };
+                    meshes.push(mesh);
+                }
+            }
+            if let (None, Some(c)) = (&camera, node.camera) {
+                camera = self.camera(c.value(), visit.world, &at, extras.as_ref())?;
+            }
+        }
+        Ok(SceneDesc {
+            name: self
+                .file
+                .file_stem()
+                .map(|s| s.to_string_lossy().into_owned())
+                .unwrap_or_default(),
+            materials,
+            meshes,
+            portals,
+            camera,
+        })
+    }
+
+    pub(super) fn portal(
+        &self,
+        visit: &Visit,
+        node: &json::Node,
+        at: &str,
+        extras: PortalExtras,
+        budget: &mut Budget,
+    ) -> Result<PortalDesc, GltfError> {
+        let Some(mesh_index) = node.mesh else {
+            return Err(self.invalid(at, "is a portal (extras.portal_target) but has no mesh"));
+        };
+        let Some(mesh) = self.root.meshes.get(mesh_index.value()) else {
+            return Err(self.invalid(at, format!("mesh {mesh_index} does not exist")));
+        };
+        let mut local_triangles = Vec::new();
+        for (p, primitive) in mesh.primitives.iter().enumerate() {
+            let at = format!(
+                "{at}, {}, primitive {p}",
+                label("mesh", mesh_index.value(), mesh.name.as_deref())
+            );
+            let geometry = self.geometry(primitive, &at)?;
+            budget.spend(self.file, &at, &geometry)?;
+            let corner = |i: u32| {
+                geometry
+                    .positions
+                    .get(i as usize)
+                    .copied()
+                    .unwrap_or(Vec3::ZERO)
+            };
+            local_triangles.extend(geometry.triangles.iter().map(|t| t.map(corner)));
+        }
+        if local_triangles.is_empty() {
+            return Err(self.invalid(at, "is a portal but its mesh has no triangles"));
+        }
+        Ok(PortalDesc {
+            name: node_name(visit.node, node),
+            target: extras.target,
+            alpha: extras.alpha,
+            local_triangles,
+            world_from_local: visit.world,
+            node_index: Some(visit.node),
+        })
+    }
+
+    /// A perspective camera seen from its node; `None` for an orthographic one.
+    pub(super) fn camera(
+        &self,
+        index: usize,
+        world: Mat4,
+        node_at: &str,
+        extras: Option<&Map<String, Value>>,
+    ) -> Result<Option<Camera>, GltfError> {
+        let Some(camera) = self.root.cameras.get(index) else {
+            return Err(self.invalid(node_at, format!("camera {index} does not exist")));
+        };
+        let at = format!(
+            "{node_at}, {}",
+            label("camera", index, camera.name.as_deref())
+        );
+        let (Checked::Valid(json::camera::Type::Perspective), Some(p)) =
+            (camera.type_, &camera.perspective)
+        else {
+            return Ok(None);
+        };
+        if !(p.yfov.is_finite() && p.yfov > 0.0 && p.yfov < std::f32::consts::PI) {
+            return Err(self.invalid(
+                format!("{at}, perspective.yfov"),
+                format!("must be in (0, π) radians, found {}", p.yfov),
+            ));
+        }
+        let aspect = p.aspect_ratio.unwrap_or(DEFAULT_ASPECT);
+        if !(aspect.is_finite() && aspect > 0.0) {
+            return Err(self.invalid(
+                format!("{at}, perspective.aspectRatio"),
+                format!("must be positive, found {aspect}"),
+            ));
+        }
+        let eye = world.w_axis.truncate();
+        let forward = world.transform_vector3(Vec3::NEG_Z).normalize_or_zero();
+        let up = world.transform_vector3(Vec3::Y).normalize_or_zero();
+        if forward == Vec3::ZERO || up == Vec3::ZERO {
+            return Err(self.invalid(at, "its node's transform is degenerate (zero scale)"));
+        }
+        let distance = extras
+            .and_then(|e| e.get(CAMERA_TARGET_DISTANCE_KEY))
+            .and_then(Value::as_f64)
+            .map(|d| d as f32)
+            .filter(|d| d.is_finite() && *d > 0.0)
+            .unwrap_or(1.0);
+        Ok(Some(Camera {
+            eye,
+            target: eye + forward * distance,
+            up,
+            yfov: p.yfov,
+            aspect,
+        }))
+    }
+}
+
+/// Triangles from a triangle list, strip or fan (strips alternate winding to keep it).
+pub(super) fn triangulate(mode: Mode, corners: &[u32]) -> Vec<[u32; 3]> {
+    match mode {
+        Mode::TriangleStrip => corners
+            .windows(3)
+            .enumerate()
+            .map(|(i, w)| {
+                if i % 2 == 0 {
+                    [w[0], w[1], w[2]]
+                } else {
+                    [w[1], w[0], w[2]]
+                }
+            })
+            .collect(),
+        Mode::TriangleFan => match corners.split_first() {
+            Some((&first, rest)) => rest.windows(2).map(|w| [first, w[0], w[1]]).collect(),
+            None => Vec::new(),
+        },
+        _ => corners
+            .chunks_exact(3)
+            .map(|c| [c[0], c[1], c[2]])
+            .collect(),
+    }
+}
+
+/// The cofactor matrix of `m`, det(m) · m⁻ᵀ: it maps normals even when `m` is singular.
+pub(super) fn cofactor(m: Mat3) -> Mat3 {
+    Mat3::from_cols(
+        m.y_axis.cross(m.z_axis),
+        m.z_axis.cross(m.x_axis),
+        m.x_axis.cross(m.y_axis),
+    )
+}
+
+/// A primitive moved to world space: positions by `world_from_local`, normals by its inverse
+/// transpose, winding flipped when it mirrors. `None` if a position overflows.
+pub(super) fn world_mesh(
+    geometry: Geometry,
+    world_from_local: Mat4,
+    node_name: String,
+    material: usize,
+) -> Option<MeshDesc> {
+    let linear = Mat3::from_mat4(world_from_local);
+    let mirrors = linear.determinant() < 0.0;
+    let normal_from_local = if mirrors {
+        -cofactor(linear)
+    } else {
+        cofactor(linear)
+    };
+    let positions: Vec<Vec3> = geometry
+        .positions
+        .iter()
+        .map(|&p| world_from_local.transform_point3(p))
+        .collect();
+    if positions.iter().any(|p| !p.is_finite()) {
+        return None;
+    }
+    let indices: Vec<[u32; 3]> = if mirrors {
+        geometry
+            .triangles
+            .iter()
+            .map(|&[a, b, c]| [a, c, b])
+            .collect()
+    } else {
+        geometry.triangles
+    };
+    let mut normals: Vec<Vec3> = match geometry.normals {
+        Some(normals) => normals
+            .iter()
+            .map(|&n| (normal_from_local * n).normalize_or_zero())
+            .collect(),
+        None => vec![Vec3::ZERO; positions.len()],
+    };
+    if normals.contains(&Vec3::ZERO) {
+        let computed = vertex_normals(&positions, &indices);
+        for (n, c) in normals.iter_mut().zip(computed) {
+            if *n == Vec3::ZERO {
+                *n = c;
+            }
+        }
+    }
+    Some(MeshDesc {
+        node_name,
+        material,
+        positions,
+        normals,
+        indices,
+    })
+}
+
+/// Area-weighted vertex normals from the faces (front by winding); +Z where undefined.
+pub(super) fn vertex_normals(positions: &[Vec3], triangles: &[[u32; 3]]) -> Vec<Vec3> {
+    let mut sums = vec![Vec3::ZERO; positions.len()];
+    let corner = |i: u32| positions.get(i as usize).copied().unwrap_or(Vec3::ZERO);
+    for t in triangles {
+        let [a, b, c] = t.map(corner);
+        // Twice the triangle's area along its normal.
+        let n = (b - a).cross(c - a);
+        for &i in t {
+            if let Some(sum) = sums.get_mut(i as usize) {
+                *sum += n;
+            }
+        }
+    }
+    sums.into_iter().map(|s| s.normalize_or(Vec3::Z)).collect()
+}
+
+pub(super) fn default_material_desc() -> MaterialDesc {
+    MaterialDesc {
+        double_sided: false,
+        ..MaterialDesc::diffuse("default", Vec3::splat(0.8))
+    }
+}
+
+pub(super) fn material_desc(
+    file: &Path,
+    index: usize,
+    m: &json::Material,
+) -> Result<MaterialDesc, GltfError> {
+    let at = label("material", index, m.name.as_deref());
+    let pbr = &m.pbr_metallic_roughness;
+    let [r, g, b, _] = pbr.base_color_factor.0;
+    let base_color = Vec3::new(r, g, b);
+    let metallic = pbr.metallic_factor.0;
+    let roughness = pbr.roughness_factor.0;
+    let emissive_factor = Vec3::from_array(m.emissive_factor.0);
+    let emissive_strength = m
+        .extensions
+        .as_ref()
+        .and_then(|e| e.emissive_strength.as_ref())
+        .map_or(1.0, |s| s.emissive_strength.0);
+    let fields = [
+        (
+            "pbrMetallicRoughness.baseColorFactor",
+            base_color.is_finite(),
+        ),
+        ("pbrMetallicRoughness.metallicFactor", metallic.is_finite()),
+        (
+            "pbrMetallicRoughness.roughnessFactor",
+            roughness.is_finite(),
+        ),
+        ("emissiveFactor", emissive_factor.is_finite()),
+        (
+            "extensions.KHR_materials_emissive_strength.emissiveStrength",
+            emissive_strength.is_finite() && emissive_strength >= 0.0,
+        ),
+    ];
+    if let Some((field, _)) = fields.iter().find(|(_, ok)| !ok) {
+        return Err(invalid(
+            file,
+            format!("{at}, {field}"),
+            "is not a finite (non-negative) number",
+        ));
+    }
+    Ok(MaterialDesc {
+        name: m
+            .name
+            .clone()
+            .unwrap_or_else(|| format!("material {index}")),
+        base_color,
+        metallic,
+        roughness,
+        emissive_factor,
+        emissive_strength,
+        double_sided: m.double_sided,
+    })
+}
+
+/// A node's `extras` if they are a JSON object.
+pub(super) fn node_extras(
+    file: &Path,
+    node: &json::Node,
+    at: &str,
+) -> Result<Option<Map<String, Value>>, GltfError> {
+    let Some(raw) = &node.extras else {
+        return Ok(None);
+    };
+    match serde_json::from_str::<Value>(raw.get()) {
+        Ok(Value::Object(map)) => Ok(Some(map)),
+        Ok(_) => Ok(None),
+        Err(e) => Err(invalid(file, format!("{at}, extras"), e.to_string())),
+    }
+}
+
+pub(super) struct PortalExtras {
+    pub(super) target: String,
+    pub(super) alpha: f32,
+}
+
+/// The portal a node's extras describe, if they name a `portal_target`.
+pub(super) fn portal_extras(
+    file: &Path,
+    extras: Option<&Map<String, Value>>,
+    at: &str,
+) -> Result<Option<PortalExtras>, GltfError> {
+    let Some(target) = extras.and_then(|e| e.get(PORTAL_TARGET_KEY)) else {
+        return Ok(None);
+    };
+    let Some(target) = target.as_str().filter(|t| !t.is_empty()) else {
+        return Err(invalid(
+            file,
+            format!("{at}, extras.{PORTAL_TARGET_KEY}"),
+            format!("must be a non-empty string naming the light's node, found {target}"),
+        ));
+    };
+    let alpha = match extras.and_then(|e| e.get(PORTAL_ALPHA_KEY)) {
+        None => DEFAULT_PORTAL_ALPHA,
+        Some(value) => match value.as_f64() {
+            Some(a) if (0.0..=1.0).contains(&a) => a as f32,
+            _ => {
+                return Err(invalid(
+                    file,
+                    format!("{at}, extras.{PORTAL_ALPHA_KEY}"),
+                    format!("must be a number in [0, 1], found {value}"),
+                ));
+            }
+        },
+    };
+    Ok(Some(PortalExtras {
+        target: target.to_owned(),
+        alpha,
+    }))
+}

@@ -1,0 +1,204 @@
+//! Checks before use: the JSON against the glTF schema and the extensions we read or may
+//! ignore; the element budget of a file; a scene description before it is written.
+
+use super::*;
+
+/// Parses and validates the JSON document.
+pub(super) fn parse_document(file: &Path, json_bytes: &[u8]) -> Result<json::Root, GltfError> {
+    let root: json::Root =
+        serde_json::from_slice(json_bytes).map_err(|source| GltfError::Json {
+            file: file.to_owned(),
+            source,
+        })?;
+    // The gltf crate's validation indexes the POSITION accessor without a bounds check.
+    for (m, mesh) in root.meshes.iter().enumerate() {
+        for (p, primitive) in mesh.primitives.iter().enumerate() {
+            for (semantic, accessor) in &primitive.attributes {
+                if accessor.value() >= root.accessors.len() {
+                    return Err(invalid(
+                        file,
+                        format!(
+                            "{}, primitive {p}, attribute {}",
+                            label("mesh", m, mesh.name.as_deref()),
+                            semantic.to_string()
+                        ),
+                        format!(
+                            "accessor {} does not exist (the file has {})",
+                            accessor.value(),
+                            root.accessors.len()
+                        ),
+                    ));
+                }
+            }
+        }
+    }
+    let mut problems = Vec::new();
+    root.validate(&root, json::Path::new, &mut |path, error| {
+        let path = path().to_string();
+        // The spec requires POSITION min/max, but they are unused here and often omitted;
+        // required extensions are judged below.
+        let ignored = path.ends_with("[\"POSITION\"].min")
+            || path.ends_with("[\"POSITION\"].max")
+            || path.starts_with("extensionsRequired");
+        if !ignored {
+            problems.push(format!("{path}: {error}"));
+        }
+    });
+    for (i, extension) in root.extensions_required.iter().enumerate() {
+        if !can_ignore_or_read(extension) {
+            problems.push(format!(
+                "extensionsRequired[{i}]: \"{extension}\" is not supported"
+            ));
+        }
+    }
+    if problems.is_empty() {
+        return Ok(root);
+    }
+    let shown = problems.len().min(8);
+    let mut listed = problems[..shown].join("; ");
+    if problems.len() > shown {
+        listed.push_str(&format!("; and {} more", problems.len() - shown));
+    }
+    Err(GltfError::Validation {
+        file: file.to_owned(),
+        problems: listed,
+    })
+}
+
+/// Whether a file that requires `extension` still loads correctly here: it only changes
+/// textures or material details that are not read, or it is understood (quantized attributes
+/// are read as normalised integers, emissive strength is read).
+pub(super) fn can_ignore_or_read(extension: &str) -> bool {
+    extension.starts_with("KHR_materials_")
+        || matches!(
+            extension,
+            "KHR_mesh_quantization"
+                | "KHR_texture_transform"
+                | "KHR_texture_basisu"
+                | "EXT_texture_webp"
+                | "EXT_texture_avif"
+                | "MSFT_texture_dds"
+                | "KHR_lights_punctual"
+        )
+}
+
+/// Counts vertices and triangles over the whole scene, so that instancing a mesh many times
+/// cannot exhaust memory.
+#[derive(Default)]
+pub(super) struct Budget {
+    pub(super) vertices: usize,
+    pub(super) triangles: usize,
+}
+
+impl Budget {
+    pub(super) fn spend(
+        &mut self,
+        file: &Path,
+        at: &str,
+        geometry: &Geometry,
+    ) -> Result<(), GltfError> {
+        self.vertices = self.vertices.saturating_add(geometry.positions.len());
+        self.triangles = self.triangles.saturating_add(geometry.triangles.len());
+        if self.vertices > MAX_ELEMENTS || self.triangles > MAX_ELEMENTS {
+            return Err(invalid(
+                file,
+                at,
+                format!(
+                    "the scene exceeds {MAX_ELEMENTS} vertices or triangles ({} and {} so far)",
+                    self.vertices, self.triangles
+                ),
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// Checks what `export_glb` and `save_portals` are given, so that they never write a file
+/// `load_gltf` would reject.
+pub(super) fn check_mesh(
+    file: &Path,
+    k: usize,
+    mesh: &MeshDesc,
+    materials: usize,
+) -> Result<(), GltfError> {
+    let at = format!("mesh {k} (node \"{}\")", mesh.node_name);
+    let problem = if mesh.positions.is_empty() || mesh.indices.is_empty() {
+        Some("has no triangles".to_owned())
+    } else if mesh.positions.len() > MAX_ELEMENTS || mesh.indices.len() > MAX_ELEMENTS {
+        Some(format!("exceeds {MAX_ELEMENTS} vertices or triangles"))
+    } else if mesh.positions.iter().any(|p| !p.is_finite()) {
+        Some("has a position that is not finite".to_owned())
+    } else if !(mesh.normals.is_empty() || mesh.normals.len() == mesh.positions.len()) {
+        Some(format!(
+            "has {} normals for {} positions",
+            mesh.normals.len(),
+            mesh.positions.len()
+        ))
+    } else if mesh.normals.iter().any(|n| !n.is_finite()) {
+        Some("has a normal that is not finite".to_owned())
+    } else if let Some(i) = mesh
+        .indices
+        .iter()
+        .flatten()
+        .find(|&&i| i as usize >= mesh.positions.len())
+    {
+        Some(format!(
+            "index {i} is out of range for {} vertices",
+            mesh.positions.len()
+        ))
+    } else if mesh.material >= materials {
+        Some(format!("material {} does not exist", mesh.material))
+    } else {
+        None
+    };
+    match problem {
+        Some(reason) => Err(invalid(file, at, reason)),
+        None => Ok(()),
+    }
+}
+
+pub(super) fn check_portal(file: &Path, portal: &PortalDesc) -> Result<(), GltfError> {
+    let at = format!("portal \"{}\"", portal.name);
+    let problem = if portal.name.is_empty() {
+        Some("has no name")
+    } else if portal.target.is_empty() {
+        Some("has no target")
+    } else if !(0.0..=1.0).contains(&portal.alpha) {
+        Some("alpha is not in [0, 1]")
+    } else if portal.local_triangles.is_empty() {
+        Some("has no triangles")
+    } else if portal.local_triangles.len() > MAX_ELEMENTS {
+        Some("has too many triangles")
+    } else if portal
+        .local_triangles
+        .iter()
+        .flatten()
+        .any(|p| !p.is_finite())
+    {
+        Some("has a vertex that is not finite")
+    } else if !portal.world_from_local.is_finite() {
+        Some("world_from_local is not finite")
+    } else {
+        None
+    };
+    match problem {
+        Some(reason) => Err(invalid(file, at, reason)),
+        None => Ok(()),
+    }
+}
+
+pub(super) fn check_material(file: &Path, k: usize, m: &MaterialDesc) -> Result<(), GltfError> {
+    let finite = m.base_color.is_finite()
+        && m.metallic.is_finite()
+        && m.roughness.is_finite()
+        && m.emissive_factor.is_finite()
+        && m.emissive_strength.is_finite();
+    if !finite || m.emissive_factor.min_element() < 0.0 || m.emissive_strength < 0.0 {
+        return Err(invalid(
+            file,
+            format!("material {k} \"{}\"", m.name),
+            "has a factor that is negative or not finite",
+        ));
+    }
+    Ok(())
+}

@@ -1,0 +1,394 @@
+//! Writing a scene description as a glTF document (meshes, materials, portals, camera).
+
+use super::*;
+
+/// A JSON number that prints as the shortest decimal reading back to the same `f32`.
+pub(super) fn json_f32(x: f32) -> Value {
+    let shortest = x.to_string().parse::<f64>().unwrap_or(f64::from(x));
+    serde_json::Number::from_f64(shortest).map_or(Value::Null, Value::Number)
+}
+
+pub(super) fn json_matrix(m: Mat4) -> Value {
+    Value::Array(m.to_cols_array().into_iter().map(json_f32).collect())
+}
+
+pub(super) fn portal_extras_json(target: &str, alpha: f32) -> Map<String, Value> {
+    let mut extras = Map::new();
+    extras.insert(PORTAL_TARGET_KEY.to_owned(), Value::from(target));
+    extras.insert(PORTAL_ALPHA_KEY.to_owned(), json_f32(alpha));
+    extras
+}
+
+pub(super) fn raw_json(
+    file: &Path,
+    value: &Map<String, Value>,
+) -> Result<Box<RawValue>, GltfError> {
+    serde_json::to_string(value)
+        .and_then(RawValue::from_string)
+        .map_err(|e| internal(file, e))
+}
+
+pub(super) fn json_index<T>(file: &Path, i: usize) -> Result<json::Index<T>, GltfError> {
+    u32::try_from(i)
+        .map(json::Index::new)
+        .map_err(|_| invalid(file, "document", format!("index {i} exceeds glTF's limits")))
+}
+
+/// Binary data and the buffer views, accessors and meshes describing it, to be appended after
+/// a document's existing ones (`*_base` counts those).
+pub(super) struct GeometryWriter<'f> {
+    pub(super) file: &'f Path,
+    pub(super) bin: Vec<u8>,
+    /// The index the buffer holding `bin` will have.
+    pub(super) buffer: usize,
+    pub(super) view_base: usize,
+    pub(super) views: Vec<json::buffer::View>,
+    pub(super) accessor_base: usize,
+    pub(super) accessors: Vec<json::Accessor>,
+    pub(super) mesh_base: usize,
+    pub(super) meshes: Vec<json::Mesh>,
+}
+
+impl<'f> GeometryWriter<'f> {
+    pub(super) fn after(file: &'f Path, root: &json::Root) -> Self {
+        GeometryWriter {
+            file,
+            bin: Vec::new(),
+            buffer: root.buffers.len(),
+            view_base: root.buffer_views.len(),
+            views: Vec::new(),
+            accessor_base: root.accessors.len(),
+            accessors: Vec::new(),
+            mesh_base: root.meshes.len(),
+            meshes: Vec::new(),
+        }
+    }
+
+    pub(super) fn view(
+        &mut self,
+        bytes: &[u8],
+        target: json::buffer::Target,
+    ) -> Result<json::Index<json::buffer::View>, GltfError> {
+        while !self.bin.len().is_multiple_of(4) {
+            self.bin.push(0);
+        }
+        let offset = self.bin.len();
+        self.bin.extend_from_slice(bytes);
+        let index = json_index(self.file, self.view_base + self.views.len())?;
+        self.views.push(json::buffer::View {
+            buffer: json_index(self.file, self.buffer)?,
+            byte_length: USize64::from(bytes.len()),
+            byte_offset: Some(USize64::from(offset)),
+            byte_stride: None,
+            name: None,
+            target: Some(Checked::Valid(target)),
+            extensions: None,
+            extras: None,
+        });
+        Ok(index)
+    }
+
+    pub(super) fn accessor(
+        &mut self,
+        view: json::Index<json::buffer::View>,
+        count: usize,
+        component: ComponentType,
+        ty: Type,
+        min_max: Option<(Vec3, Vec3)>,
+    ) -> Result<json::Index<json::Accessor>, GltfError> {
+        let index = json_index(self.file, self.accessor_base + self.accessors.len())?;
+        let as_json = |v: Vec3| Value::Array(v.to_array().into_iter().map(json_f32).collect());
+        self.accessors.push(json::Accessor {
+            buffer_view: Some(view),
+            byte_offset: None,
+            count: USize64::from(count),
+            component_type: Checked::Valid(GenericComponentType(component)),
+            extensions: None,
+            extras: None,
+            type_: Checked::Valid(ty),
+            min: min_max.map(|(lo, _)| as_json(lo)),
+            max: min_max.map(|(_, hi)| as_json(hi)),
+            name: None,
+            normalized: false,
+            sparse: None,
+        });
+        Ok(index)
+    }
+
+    pub(super) fn vec3s(
+        &mut self,
+        values: &[Vec3],
+        min_max: bool,
+    ) -> Result<json::Index<json::Accessor>, GltfError> {
+        let bytes: Vec<u8> = values
+            .iter()
+            .flat_map(|v| v.to_array())
+            .flat_map(f32::to_le_bytes)
+            .collect();
+        let view = self.view(&bytes, json::buffer::Target::ArrayBuffer)?;
+        let bounds = min_max.then(|| {
+            values
+                .iter()
+                .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), &p| {
+                    (lo.min(p), hi.max(p))
+                })
+        });
+        self.accessor(view, values.len(), ComponentType::F32, Type::Vec3, bounds)
+    }
+
+    pub(super) fn indices(
+        &mut self,
+        triangles: &[[u32; 3]],
+    ) -> Result<json::Index<json::Accessor>, GltfError> {
+        let bytes: Vec<u8> = triangles
+            .iter()
+            .flatten()
+            .flat_map(|i| i.to_le_bytes())
+            .collect();
+        let view = self.view(&bytes, json::buffer::Target::ElementArrayBuffer)?;
+        self.accessor(
+            view,
+            triangles.len() * 3,
+            ComponentType::U32,
+            Type::Scalar,
+            None,
+        )
+    }
+
+    /// A one-primitive triangle mesh.
+    pub(super) fn mesh(
+        &mut self,
+        name: &str,
+        positions: &[Vec3],
+        normals: Option<&[Vec3]>,
+        triangles: &[[u32; 3]],
+        material: Option<usize>,
+    ) -> Result<json::Index<json::Mesh>, GltfError> {
+        let mut attributes = BTreeMap::new();
+        attributes.insert(
+            Checked::Valid(Semantic::Positions),
+            self.vec3s(positions, true)?,
+        );
+        if let Some(normals) = normals {
+            attributes.insert(
+                Checked::Valid(Semantic::Normals),
+                self.vec3s(normals, false)?,
+            );
+        }
+        let indices = self.indices(triangles)?;
+        let material = material.map(|m| json_index(self.file, m)).transpose()?;
+        let index = json_index(self.file, self.mesh_base + self.meshes.len())?;
+        self.meshes.push(json::Mesh {
+            extensions: None,
+            extras: None,
+            name: Some(name.to_owned()),
+            primitives: vec![json::mesh::Primitive {
+                attributes,
+                extensions: None,
+                extras: None,
+                indices: Some(indices),
+                material,
+                mode: Checked::Valid(Mode::Triangles),
+                targets: None,
+            }],
+            weights: None,
+        });
+        Ok(index)
+    }
+
+    /// A portal's local triangles as an indexed mesh without material.
+    pub(super) fn portal_mesh(
+        &mut self,
+        name: &str,
+        triangles: &[[Vec3; 3]],
+    ) -> Result<json::Index<json::Mesh>, GltfError> {
+        let positions: Vec<Vec3> = triangles.iter().flatten().copied().collect();
+        let indices: Vec<[u32; 3]> = (0..triangles.len() as u32)
+            .map(|t| [3 * t, 3 * t + 1, 3 * t + 2])
+            .collect();
+        self.mesh(name, &positions, None, &indices, None)
+    }
+}
+
+pub(super) fn export_material(m: &MaterialDesc) -> (json::Material, bool) {
+    // glTF keeps emissiveFactor in [0, 1]: fold any excess into the strength (same radiance).
+    let peak = m.emissive_factor.max_element();
+    let (factor, strength) = if peak > 1.0 {
+        (m.emissive_factor / peak, m.emissive_strength * peak)
+    } else {
+        (m.emissive_factor, m.emissive_strength)
+    };
+    let uses_strength = strength != 1.0;
+    let extensions = uses_strength.then(|| json::extensions::material::Material {
+        emissive_strength: Some(json::extensions::material::EmissiveStrength {
+            emissive_strength: json::extensions::material::EmissiveStrengthFactor(strength),
+        }),
+        ..Default::default()
+    });
+    let material = json::Material {
+        name: Some(m.name.clone()),
+        pbr_metallic_roughness: json::material::PbrMetallicRoughness {
+            base_color_factor: json::material::PbrBaseColorFactor(
+                m.base_color.extend(1.0).to_array(),
+            ),
+            metallic_factor: json::material::StrengthFactor(m.metallic),
+            roughness_factor: json::material::StrengthFactor(m.roughness),
+            ..Default::default()
+        },
+        emissive_factor: json::material::EmissiveFactor(factor.to_array()),
+        double_sided: m.double_sided,
+        extensions,
+        ..Default::default()
+    };
+    (material, uses_strength)
+}
+
+/// The camera node's world matrix (looking down its −Z, +Y up) and the target distance.
+pub(super) fn camera_transform(file: &Path, c: &Camera) -> Result<(Mat4, f32), GltfError> {
+    let to_target = c.target - c.eye;
+    let forward = to_target.normalize_or_zero();
+    let right = forward.cross(c.up).normalize_or_zero();
+    if !c.eye.is_finite() || forward == Vec3::ZERO || right == Vec3::ZERO {
+        return Err(invalid(
+            file,
+            "camera",
+            "eye, target and up give no view direction (target at eye, or up along it)",
+        ));
+    }
+    if !(c.yfov.is_finite() && c.yfov > 0.0 && c.yfov < std::f32::consts::PI) {
+        return Err(invalid(file, "camera, yfov", "must be in (0, π) radians"));
+    }
+    if !(c.aspect.is_finite() && c.aspect > 0.0) {
+        return Err(invalid(file, "camera, aspect", "must be positive"));
+    }
+    let up = right.cross(forward);
+    let world_from_camera = Mat4::from_cols(
+        right.extend(0.0),
+        up.extend(0.0),
+        (-forward).extend(0.0),
+        c.eye.extend(1.0),
+    );
+    Ok((world_from_camera, to_target.length()))
+}
+
+/// `desc` as a glTF document and its binary buffer.
+pub(super) fn export_document(
+    file: &Path,
+    desc: &SceneDesc,
+) -> Result<(json::Root, Vec<u8>), GltfError> {
+    for (k, m) in desc.materials.iter().enumerate() {
+        check_material(file, k, m)?;
+    }
+    for (k, mesh) in desc.meshes.iter().enumerate() {
+        check_mesh(file, k, mesh, desc.materials.len())?;
+    }
+    for portal in &desc.portals {
+        check_portal(file, portal)?;
+    }
+    let mut root = json::Root::default();
+    root.asset.generator = Some("portalview".to_owned());
+    let mut uses_strength = false;
+    for m in &desc.materials {
+        let (material, strength) = export_material(m);
+        uses_strength |= strength;
+        root.materials.push(material);
+    }
+    let mut geometry = GeometryWriter::after(file, &root);
+    let mut nodes = Vec::new();
+    for mesh in &desc.meshes {
+        let normals = (!mesh.normals.is_empty()).then_some(mesh.normals.as_slice());
+        let index = geometry.mesh(
+            &mesh.node_name,
+            &mesh.positions,
+            normals,
+            &mesh.indices,
+            Some(mesh.material),
+        )?;
+        nodes.push(json::Node {
+            name: Some(mesh.node_name.clone()),
+            mesh: Some(index),
+            ..Default::default()
+        });
+    }
+    for portal in &desc.portals {
+        let index = geometry.portal_mesh(&portal.name, &portal.local_triangles)?;
+        let extras = portal_extras_json(&portal.target, portal.alpha);
+        nodes.push(json::Node {
+            name: Some(portal.name.clone()),
+            mesh: Some(index),
+            matrix: Some(portal.world_from_local.to_cols_array()),
+            extras: Some(raw_json(file, &extras)?),
+            ..Default::default()
+        });
+    }
+    if let Some(camera) = &desc.camera {
+        let (world_from_camera, distance) = camera_transform(file, camera)?;
+        let camera_index = json_index(file, root.cameras.len())?;
+        root.cameras.push(json::Camera {
+            name: Some("camera".to_owned()),
+            orthographic: None,
+            perspective: Some(json::camera::Perspective {
+                aspect_ratio: Some(camera.aspect),
+                yfov: camera.yfov,
+                zfar: None,
+                znear: 0.01,
+                extensions: None,
+                extras: None,
+            }),
+            type_: Checked::Valid(json::camera::Type::Perspective),
+            extensions: None,
+            extras: None,
+        });
+        let mut extras = Map::new();
+        extras.insert(CAMERA_TARGET_DISTANCE_KEY.to_owned(), json_f32(distance));
+        nodes.push(json::Node {
+            name: Some("camera".to_owned()),
+            camera: Some(camera_index),
+            matrix: Some(world_from_camera.to_cols_array()),
+            extras: Some(raw_json(file, &extras)?),
+            ..Default::default()
+        });
+    }
+    root.scenes.push(json::Scene {
+        extensions: None,
+        extras: None,
+        name: Some(desc.name.clone()),
+        nodes: (0..nodes.len())
+            .map(|i| json_index(file, i))
+            .collect::<Result<_, _>>()?,
+    });
+    root.scene = Some(json_index(file, 0)?);
+    root.nodes = nodes;
+    let GeometryWriter {
+        bin,
+        views,
+        accessors,
+        meshes,
+        ..
+    } = geometry;
+    if !bin.is_empty() {
+        root.buffers.push(json::Buffer {
+            byte_length: USize64::from(bin.len()),
+            name: None,
+            uri: None,
+            extensions: None,
+            extras: None,
+        });
+    }
+    root.buffer_views = views;
+    root.accessors = accessors;
+    root.meshes = meshes;
+    if uses_strength {
+        root.extensions_used
+            .push(EMISSIVE_STRENGTH_EXTENSION.to_owned());
+    }
+    Ok((root, bin))
+}
+
+/// Writes through [`crate::io::write_atomic`], as a glTF error naming the file.
+pub(super) fn write_atomically(file: &Path, bytes: &[u8]) -> Result<(), GltfError> {
+    crate::io::write_atomic(file, bytes).map_err(|source| GltfError::Write {
+        file: file.to_owned(),
+        source,
+    })
+}

@@ -1,0 +1,195 @@
+//! `portalview compare`: strategies at equal time against a reference, with reports.
+
+use anyhow::Result;
+use clap::Args;
+use std::path::PathBuf;
+use std::sync::atomic::AtomicBool;
+
+use crate::compare::report::sci;
+use crate::compare::*;
+use crate::light::Strategy;
+use crate::scene::Scene;
+
+/// `portalview compare`: every strategy gets the same pass render time; MSE against a reference
+/// is recorded as they converge. Writes convergence.csv, convergence.svg and summary.md into
+/// --out (with --figure8: one subfolder per scene, plus figure8.csv, figure8.md, figure8.svg).
+#[derive(Args, Debug, Clone)]
+pub struct CompareArgs {
+    /// Built-in name (lampshade, fig8a, fig8b, fig8c) or a .gltf/.glb path.
+    #[arg(long, required_unless_present = "figure8", conflicts_with = "figure8")]
+    pub scene: Option<String>,
+    /// Compare on fig8a, fig8b and fig8c (the thesis's Figure 8).
+    #[arg(long)]
+    pub figure8: bool,
+    /// Strategies to compare, comma-separated.
+    #[arg(long, value_enum, value_delimiter = ',', default_values_t = Strategy::ALL)]
+    pub strategies: Vec<Strategy>,
+    /// Pass render time per strategy, in seconds (the whole run takes this times the number
+    /// of strategies, plus the reference).
+    #[arg(long)]
+    pub seconds: f64,
+    /// Output folder.
+    #[arg(long)]
+    pub out: PathBuf,
+    #[arg(long, default_value_t = 256)]
+    pub width: u32,
+    /// Image height (default: from the width and the camera's aspect ratio).
+    #[arg(long)]
+    pub height: Option<u32>,
+    /// Seed of the compared renders (the reference uses another, derived from it).
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Path vertices after the camera (1 = direct light only, as in the thesis).
+    #[arg(long, default_value_t = 1)]
+    pub max_depth: u32,
+    /// A reference image (.exr of the same size) instead of rendering one; a .json sidecar
+    /// beside it, as the cache writes, tells its convergence.
+    #[arg(long, conflicts_with_all = ["figure8", "reference_seconds", "reference_spp"])]
+    pub reference: Option<PathBuf>,
+    /// Render time of the reference, with antishadow sampling [default: 10 × --seconds, so
+    /// that its noise floor is about a tenth of the best strategy's MSE].
+    #[arg(long, conflicts_with = "reference_spp")]
+    pub reference_seconds: Option<f64>,
+    /// Samples per pixel of the reference, instead of a time.
+    #[arg(long)]
+    pub reference_spp: Option<u32>,
+    /// Where references are cached, by a hash of the scene, camera, size and depth [default:
+    /// $XDG_CACHE_HOME/portalview or ~/.cache/portalview]. A cached reference is reused when
+    /// it had at least the requested time or spp.
+    #[arg(long)]
+    pub cache_dir: Option<PathBuf>,
+}
+
+/// The built-in scenes of `--figure8`.
+pub const FIGURE8_SCENES: [&str; 3] = ["fig8a", "fig8b", "fig8c"];
+
+/// A reference budget's default: ten times one strategy's time, so that the reference's
+/// noise floor is about a tenth of the best strategy's MSE.
+pub const DEFAULT_REFERENCE_FACTOR: f64 = 10.0;
+
+/// `portalview compare`.
+pub fn run(args: &CompareArgs) -> Result<()> {
+    anyhow::ensure!(
+        args.seconds.is_finite() && args.seconds > 0.0,
+        "--seconds {} must be positive",
+        args.seconds
+    );
+    anyhow::ensure!(args.width > 0, "--width must be positive");
+    anyhow::ensure!(!args.strategies.is_empty(), "--strategies lists none");
+    for (i, s) in args.strategies.iter().enumerate() {
+        anyhow::ensure!(
+            !args.strategies[..i].contains(s),
+            "--strategies lists {} twice",
+            s.name()
+        );
+    }
+    let budget = match (args.reference_seconds, args.reference_spp) {
+        (_, Some(n)) => ReferenceBudget::Spp(n),
+        (Some(s), None) => {
+            anyhow::ensure!(
+                s.is_finite() && s > 0.0,
+                "--reference-seconds {s} must be positive"
+            );
+            ReferenceBudget::Seconds(s)
+        }
+        (None, None) => ReferenceBudget::Seconds(DEFAULT_REFERENCE_FACTOR * args.seconds),
+    };
+    let names: Vec<String> = if args.figure8 {
+        FIGURE8_SCENES.iter().map(|&s| s.to_owned()).collect()
+    } else {
+        match &args.scene {
+            Some(s) => vec![s.clone()],
+            None => anyhow::bail!("give --scene (a built-in name or a glTF file) or --figure8"),
+        }
+    };
+    let cache_dir = args.cache_dir.clone().or_else(default_cache_dir);
+    let mut comparisons = Vec::new();
+    let mut written = Vec::new();
+    for name in &names {
+        let mut scene = Scene::open(name)?;
+        if scene.name.is_empty() {
+            scene.name = name.clone();
+        }
+        let height = args
+            .height
+            .unwrap_or_else(|| scene.camera.height_for_width(args.width));
+        anyhow::ensure!(height > 0, "--height must be positive");
+        let image = ImageSpec {
+            width: args.width,
+            height,
+            max_depth: args.max_depth,
+        };
+        eprintln!(
+            "{}: {}x{} px, reference",
+            scene.name, image.width, image.height
+        );
+        let progress = progress_bar(0, "{bar:40} {pos}/{len} {msg}  {elapsed_precise}");
+        let reference = match (&args.reference, &cache_dir) {
+            (Some(file), _) => load_reference(file, image.width, image.height)?,
+            (None, Some(dir)) => {
+                cached_reference(dir, &scene, image, args.seed, budget, &progress)?
+            }
+            (None, None) => {
+                eprintln!(
+                    "no cache folder (set XDG_CACHE_HOME or HOME, or --cache-dir): not caching"
+                );
+                let never = AtomicBool::new(false);
+                render_reference(&scene, image, args.seed, budget, &never, &progress)
+                    .map_err(|e| anyhow::anyhow!("{}: {e}", scene.name))?
+            }
+        };
+        progress.finish_and_clear();
+        if let (Some(file), Some(info)) = (&args.reference, &reference.info) {
+            if info.key != cache_key(&scene, image) {
+                eprintln!(
+                    "warning: {}: its sidecar says it was rendered for another scene, camera or \
+                     depth ({})",
+                    file.display(),
+                    info.key
+                );
+            }
+            if info.seed == args.seed {
+                eprintln!(
+                    "warning: {}: rendered with the same seed as the comparison, so its noise \
+                     is correlated with theirs (use another --seed)",
+                    file.display()
+                );
+            }
+        }
+        if let Some(info) = &reference.info {
+            eprintln!(
+                "{}: reference {} spp in {:.1} s, mean relative standard error {:.3}%, MSE floor {}",
+                scene.name,
+                info.spp,
+                info.seconds,
+                100.0 * info.convergence.mean_relative_standard_error,
+                sci(info.convergence.mse_floor)
+            );
+        }
+        let settings = CompareSettings {
+            strategies: args.strategies.clone(),
+            seconds: args.seconds,
+            image,
+            seed: args.seed,
+        };
+        let progress = progress_bar(0, "{bar:40} {msg}  {elapsed_precise}");
+        let comparison = compare(&scene, &settings, &reference, &progress);
+        progress.finish_and_clear();
+        let dir = if args.figure8 {
+            args.out.join(&scene.name)
+        } else {
+            args.out.clone()
+        };
+        written.extend(write_scene_outputs(&dir, &comparison)?);
+        println!("{}", summary_markdown(&comparison));
+        comparisons.push(comparison);
+    }
+    if args.figure8 {
+        written.extend(write_figure8_outputs(&args.out, &comparisons)?);
+        println!("{}", figure8_markdown(&comparisons));
+    }
+    for path in written {
+        println!("wrote {}", path.display());
+    }
+    Ok(())
+}

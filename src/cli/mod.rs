@@ -1,0 +1,58 @@
+//! The command line: parses arguments, translates them into the library's parameter types and
+//! runs one subcommand. Nothing imports this module.
+
+mod bench;
+mod compare;
+mod export;
+mod render;
+mod view;
+
+use anyhow::Result;
+use clap::{Parser, Subcommand};
+use std::path::PathBuf;
+
+pub use bench::BenchArgs;
+pub use compare::CompareArgs;
+pub use render::RenderArgs;
+pub use view::ViewArgs;
+
+#[derive(Parser, Debug)]
+#[command(
+    name = "portalview",
+    version,
+    about = "Light portals for area lights: a viewer and a renderer"
+)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Option<Command>,
+}
+
+#[derive(Subcommand, Debug)]
+pub enum Command {
+    /// Open the viewer (the default) on a built-in scene or a .gltf/.glb file.
+    View(ViewArgs),
+    /// Render an image headless.
+    Render(RenderArgs),
+    /// Write a built-in scene as .glb, with the portal conventions.
+    Export {
+        #[arg(long)]
+        scene: String,
+        #[arg(long)]
+        out: PathBuf,
+    },
+    /// Measure raw BVH traversal and renderer throughput on the built-in scenes.
+    Bench(BenchArgs),
+    /// Render strategies for equal time and measure their error against a converged reference.
+    Compare(CompareArgs),
+}
+
+pub fn run(command: Command) -> Result<()> {
+    match command {
+        Command::View(args) => crate::app::run_viewer(args.into()),
+        Command::Render(args) => render::run(&args),
+        Command::Export { scene, out } => export::run(&scene, &out),
+        Command::Bench(args) if args.ui => bench::run_ui(&args),
+        Command::Bench(args) => bench::run(&args),
+        Command::Compare(args) => compare::run(&args),
+    }
+}

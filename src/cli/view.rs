@@ -1,0 +1,37 @@
+//! `portalview view`: the viewer's start-up options.
+
+use clap::Args;
+
+use crate::app::ViewOptions;
+use crate::app::overlay::OverlayKind;
+use crate::light::Strategy;
+
+#[derive(Args, Debug, Clone, Default)]
+pub struct ViewArgs {
+    /// Built-in name (lampshade, fig8a, fig8b, fig8c) or a .gltf/.glb path.
+    pub scene: Option<String>,
+    /// Start with this strategy (else the one used last).
+    #[arg(long, value_enum)]
+    pub strategy: Option<Strategy>,
+    /// Start with this overlay over the image.
+    #[arg(long, value_enum)]
+    pub overlay: Option<OverlayKind>,
+    /// Draw the edges of the antishadow volumes.
+    #[arg(long)]
+    pub volumes: bool,
+    /// Path vertices after the camera (else the value used last).
+    #[arg(long)]
+    pub max_depth: Option<u32>,
+}
+
+impl From<ViewArgs> for ViewOptions {
+    fn from(a: ViewArgs) -> Self {
+        ViewOptions {
+            scene: a.scene,
+            strategy: a.strategy,
+            overlay: a.overlay,
+            volumes: a.volumes,
+            max_depth: a.max_depth,
+        }
+    }
+}

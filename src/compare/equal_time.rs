@@ -1,0 +1,256 @@
+//! Strategies rendered at equal time against a reference: the scheduler and a whole comparison.
+
+use anyhow::Result;
+use indicatif::ProgressBar;
+use std::sync::atomic::AtomicBool;
+use std::time::Instant;
+
+use super::metrics::{mse, relmse};
+use super::reference::{ImageSpec, Reference, ReferenceInfo, ReferenceOrigin};
+use crate::light::Strategy;
+use crate::render::film::Film;
+use crate::render::integrator::{Integrator, RenderSettings};
+use crate::render::stats::Stats;
+use crate::render::{Cancelled, render_pass};
+use crate::scene::Scene;
+
+/// One strategy's render in an [`EqualTime`] comparison.
+#[derive(Clone, Debug)]
+pub struct StrategyRun {
+    pub strategy: Strategy,
+    pub film: Film,
+    pub stats: Stats,
+    /// Accumulated pass render time.
+    pub seconds: f64,
+}
+
+/// Renders several strategies of one scene, camera and resolution at equal wall time: each
+/// step renders one pass of the strategy with the least accumulated pass time (ties go to the
+/// earlier one), so that their times never differ by more than one pass. Only the passes are
+/// timed: whatever the caller does between steps does not count. Owns its scene, so that a
+/// worker thread can keep it between steps.
+pub struct EqualTime {
+    scene: Scene,
+    settings: RenderSettings,
+    width: u32,
+    height: u32,
+    runs: Vec<StrategyRun>,
+}
+
+impl EqualTime {
+    /// `settings.strategy` is replaced by each of `strategies` in turn.
+    pub fn new(
+        scene: Scene,
+        strategies: &[Strategy],
+        width: u32,
+        height: u32,
+        settings: RenderSettings,
+    ) -> Self {
+        let runs = strategies
+            .iter()
+            .map(|&strategy| StrategyRun {
+                strategy,
+                film: Film::new(width, height),
+                stats: Stats::default(),
+                seconds: 0.0,
+            })
+            .collect();
+        EqualTime {
+            scene,
+            settings,
+            width,
+            height,
+            runs,
+        }
+    }
+
+    pub fn scene(&self) -> &Scene {
+        &self.scene
+    }
+
+    pub fn runs(&self) -> &[StrategyRun] {
+        &self.runs
+    }
+
+    /// The run that the next step renders: the least accumulated time, the first on ties.
+    pub fn next(&self) -> Option<usize> {
+        let mut best: Option<(usize, f64)> = None;
+        for (i, run) in self.runs.iter().enumerate() {
+            if best.is_none_or(|(_, s)| run.seconds < s) {
+                best = Some((i, run.seconds));
+            }
+        }
+        best.map(|(i, _)| i)
+    }
+
+    /// The least accumulated time over the runs (0 without runs).
+    pub fn min_seconds(&self) -> f64 {
+        self.next().map_or(0.0, |i| self.runs[i].seconds)
+    }
+
+    /// Renders one pass of [`Self::next`] and returns its index (`None` without runs). A
+    /// cancelled pass changes nothing.
+    pub fn step(&mut self, cancel: &AtomicBool) -> Result<Option<usize>, Cancelled> {
+        let Some(i) = self.next() else {
+            return Ok(None);
+        };
+        let run = &mut self.runs[i];
+        let settings = RenderSettings {
+            strategy: run.strategy,
+            ..self.settings
+        };
+        // Built per pass (cheap next to a pass) so that the scheduler need not borrow its scene.
+        let integrator = Integrator::new(&self.scene, settings);
+        let start = Instant::now();
+        let (pass, stats) =
+            render_pass(&integrator, self.width, self.height, run.film.spp, cancel)?;
+        run.seconds += start.elapsed().as_secs_f64();
+        run.film.add_pass(&pass);
+        run.stats += stats;
+        Ok(Some(i))
+    }
+}
+
+/// What one comparison renders.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CompareSettings {
+    pub strategies: Vec<Strategy>,
+    /// Pass render time per strategy.
+    pub seconds: f64,
+    pub image: ImageSpec,
+    pub seed: u64,
+}
+
+/// One recorded point of a strategy's convergence.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ConvergencePoint {
+    pub strategy: Strategy,
+    pub seconds: f64,
+    pub spp: u32,
+    pub mse: f64,
+    pub relmse: f64,
+}
+
+/// A strategy at the end of a comparison.
+#[derive(Clone, Debug, PartialEq)]
+pub struct StrategyResult {
+    pub strategy: Strategy,
+    pub spp: u32,
+    pub seconds: f64,
+    pub mse: f64,
+    pub relmse: f64,
+    /// `1 / (MSE × seconds)`.
+    pub efficiency: f64,
+    /// `efficiency` over light sampling's; `None` without light sampling in the comparison.
+    pub efficiency_vs_light: Option<f64>,
+    pub stats: Stats,
+}
+
+/// Everything one scene's comparison produced.
+#[derive(Clone, Debug)]
+pub struct SceneComparison {
+    pub scene: String,
+    pub settings: CompareSettings,
+    pub reference_info: Option<ReferenceInfo>,
+    pub reference_origin: ReferenceOrigin,
+    /// In recording order; per strategy, seconds increase.
+    pub points: Vec<ConvergencePoint>,
+    /// In the order of `settings.strategies`.
+    pub results: Vec<StrategyResult>,
+}
+
+/// A point is recorded when a strategy's time has grown by this factor since its last one
+/// (about ten per decade), and at its first and last pass.
+pub const RECORD_FACTOR: f64 = 1.25;
+
+/// Renders every strategy for `settings.seconds` of pass time, by [`EqualTime`], recording MSE
+/// and relMSE against `reference` at roughly log-spaced times. `progress` advances in
+/// milliseconds of total pass time.
+pub fn compare(
+    scene: &Scene,
+    settings: &CompareSettings,
+    reference: &Reference,
+    progress: &ProgressBar,
+) -> SceneComparison {
+    let image = settings.image;
+    let render = RenderSettings {
+        strategy: Strategy::Light,
+        alpha: None,
+        max_depth: image.max_depth,
+        seed: settings.seed,
+    };
+    let mut schedule = EqualTime::new(
+        scene.clone(),
+        &settings.strategies,
+        image.width,
+        image.height,
+        render,
+    );
+    let n = settings.strategies.len();
+    progress.set_length((settings.seconds * n as f64 * 1e3) as u64);
+    let mut next_record = vec![0.0; n];
+    let mut points = Vec::new();
+    let never = AtomicBool::new(false);
+    while n > 0 && schedule.min_seconds() < settings.seconds {
+        let Ok(Some(i)) = schedule.step(&never) else {
+            break;
+        };
+        let run = &schedule.runs()[i];
+        if run.seconds >= next_record[i] || run.seconds >= settings.seconds {
+            let mean = run.film.mean();
+            points.push(ConvergencePoint {
+                strategy: run.strategy,
+                seconds: run.seconds,
+                spp: run.film.spp,
+                mse: mse(&mean, &reference.pixels),
+                relmse: relmse(&mean, &reference.pixels),
+            });
+            next_record[i] = run.seconds * RECORD_FACTOR;
+        }
+        let total: f64 = schedule
+            .runs()
+            .iter()
+            .map(|r| r.seconds.min(settings.seconds))
+            .sum();
+        progress.set_position((total * 1e3) as u64);
+        let spp: Vec<String> = schedule
+            .runs()
+            .iter()
+            .map(|r| format!("{} {}", r.strategy.name(), r.film.spp))
+            .collect();
+        progress.set_message(format!("{} spp", spp.join(", ")));
+    }
+    let mut results: Vec<StrategyResult> = schedule
+        .runs()
+        .iter()
+        .map(|run| {
+            let mean = run.film.mean();
+            let error = mse(&mean, &reference.pixels);
+            StrategyResult {
+                strategy: run.strategy,
+                spp: run.film.spp,
+                seconds: run.seconds,
+                mse: error,
+                relmse: relmse(&mean, &reference.pixels),
+                efficiency: 1.0 / (error * run.seconds),
+                efficiency_vs_light: None,
+                stats: run.stats,
+            }
+        })
+        .collect();
+    let light = results
+        .iter()
+        .find(|r| r.strategy == Strategy::Light)
+        .map(|r| r.efficiency);
+    for r in &mut results {
+        r.efficiency_vs_light = light.map(|l| r.efficiency / l).filter(|e| e.is_finite());
+    }
+    SceneComparison {
+        scene: scene.name.clone(),
+        settings: settings.clone(),
+        reference_info: reference.info.clone(),
+        reference_origin: reference.origin.clone(),
+        points,
+        results,
+    }
+}

@@ -1,0 +1,92 @@
+//! Error metrics of an image against a reference, and how converged a film is.
+
+use glam::{DVec3, Vec3};
+use serde::{Deserialize, Serialize};
+
+use crate::render::film::Film;
+
+/// The ε of relMSE, in squared radiance units: `(x − r)² / (r² + ε)`. It keeps black and
+/// near-black reference pixels (shadows, the unlit background) from dominating the mean; with
+/// the built-in scenes' radiances of about 0.01 to 10, it weights pixels darker than 0.1 by
+/// their absolute rather than relative error. 1e-2 is the usual choice (Rousselle et al.).
+pub const RELMSE_EPSILON: f64 = 1e-2;
+
+/// Mean squared error over pixels and channels. Both images are row-major and of equal size.
+///
+/// # Panics
+/// If the lengths differ (a caller's bug: the sizes are checked where images are loaded).
+pub fn mse(image: &[Vec3], reference: &[Vec3]) -> f64 {
+    mean_channel_error(image, reference, |d, _| d * d)
+}
+
+/// Relative MSE: the mean over pixels and channels of `(x − r)² / (r² + ε)`, with
+/// ε = [`RELMSE_EPSILON`].
+///
+/// # Panics
+/// If the lengths differ.
+pub fn relmse(image: &[Vec3], reference: &[Vec3]) -> f64 {
+    mean_channel_error(image, reference, |d, r| d * d / (r * r + RELMSE_EPSILON))
+}
+
+/// The mean over pixels and channels of `error(x − r, r)`, in f64.
+fn mean_channel_error(
+    image: &[Vec3],
+    reference: &[Vec3],
+    error: impl Fn(DVec3, DVec3) -> DVec3,
+) -> f64 {
+    assert_eq!(image.len(), reference.len(), "images of different sizes");
+    if image.is_empty() {
+        return 0.0;
+    }
+    let sum: f64 = image
+        .iter()
+        .zip(reference)
+        .map(|(&x, &r)| {
+            let r = r.as_dvec3();
+            let e = error(x.as_dvec3() - r, r);
+            e.x + e.y + e.z
+        })
+        .sum();
+    sum / (3 * image.len()) as f64
+}
+
+/// How converged a rendered image is, from its film's per-pixel variance of the mean.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Convergence {
+    /// Mean over pixel channels of `sqrt(var / (r² + ε))`: the standard error relative to the
+    /// pixel's value, with relMSE's ε. Exactly black channels with no variance (nothing was
+    /// ever seen there) are left out.
+    pub mean_relative_standard_error: f64,
+    /// Mean variance of the pixel means: the expected MSE of this image against the true one,
+    /// and what it adds to the MSE of any independent image measured against it.
+    pub mse_floor: f64,
+    /// The same floor for relMSE: mean of `var / (r² + ε)`.
+    pub relmse_floor: f64,
+}
+
+impl Convergence {
+    pub fn of(film: &Film) -> Convergence {
+        let mean = film.mean();
+        let variance = film.variance_of_mean();
+        let (mut rse, mut counted) = (0.0f64, 0usize);
+        let (mut floor, mut rel_floor) = (0.0f64, 0.0f64);
+        for (m, v) in mean.iter().zip(&variance) {
+            for (r, var) in [(m.x, v.x), (m.y, v.y), (m.z, v.z)] {
+                let (r, var) = (r as f64, var as f64);
+                floor += var;
+                let rel = var / (r * r + RELMSE_EPSILON);
+                rel_floor += rel;
+                if r != 0.0 || var != 0.0 {
+                    rse += rel.sqrt();
+                    counted += 1;
+                }
+            }
+        }
+        let channels = (3 * mean.len()).max(1) as f64;
+        Convergence {
+            mean_relative_standard_error: rse / counted.max(1) as f64,
+            mse_floor: floor / channels,
+            relmse_floor: rel_floor / channels,
+        }
+    }
+}

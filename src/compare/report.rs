@@ -1,0 +1,363 @@
+//! What `portalview compare` writes: CSV, Markdown and SVG, and the number formats and
+//! strategy colours the viewer shares.
+
+use anyhow::{Context, Result};
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use super::equal_time::{ConvergencePoint, SceneComparison};
+use super::metrics::RELMSE_EPSILON;
+use super::reference::{ReferenceInfo, ReferenceOrigin};
+use crate::light::Strategy;
+
+/// A number in scientific notation with four significant digits, or a dash.
+pub fn sci(v: f64) -> String {
+    if v.is_finite() {
+        format!("{v:.3e}")
+    } else {
+        "–".to_owned()
+    }
+}
+
+/// Each strategy's colour, the same in every plot, table and legend (sRGB).
+pub fn strategy_rgb(strategy: Strategy) -> [u8; 3] {
+    match strategy {
+        Strategy::Light => [31, 119, 180],
+        Strategy::Portal => [255, 127, 14],
+        Strategy::Projection => [44, 160, 44],
+        Strategy::Antishadow => [214, 39, 40],
+    }
+}
+
+/// A tick label on a log axis: plain between 0.01 and 1000 (trailing zeros dropped), else
+/// `1e-5` style.
+pub fn tick_label(v: f64) -> String {
+    if (0.01..1000.0).contains(&v.abs()) {
+        let s = format!("{v:.3}");
+        s.trim_end_matches('0').trim_end_matches('.').to_owned()
+    } else {
+        format!("{v:.0e}")
+    }
+}
+
+/// Plot colours by strategy.
+fn colour(strategy: Strategy) -> plotters::style::RGBColor {
+    let [r, g, b] = strategy_rgb(strategy);
+    plotters::style::RGBColor(r, g, b)
+}
+
+/// Writes `contents` atomically, as an error naming the file.
+fn write_file(path: &Path, contents: &[u8]) -> Result<()> {
+    crate::io::write_atomic(path, contents)
+        .with_context(|| format!("{}: cannot write", path.display()))
+}
+
+/// A CSV field, quoted when it needs to be.
+fn csv_field(s: &str) -> String {
+    if s.contains([',', '"', '\n', '\r']) {
+        format!("\"{}\"", s.replace('"', "\"\""))
+    } else {
+        s.to_owned()
+    }
+}
+
+/// `scene,strategy,seconds,spp,mse,relmse`, one row per recorded point, grouped by strategy
+/// (in the comparison's order), by time within each.
+pub fn convergence_csv(c: &SceneComparison) -> String {
+    let mut out = String::from("scene,strategy,seconds,spp,mse,relmse\n");
+    let scene = csv_field(&c.scene);
+    let mut points: Vec<&ConvergencePoint> = c.points.iter().collect();
+    points.sort_by_key(|p| c.settings.strategies.iter().position(|&s| s == p.strategy));
+    for p in points {
+        let _ = writeln!(
+            out,
+            "{scene},{},{:.6},{},{:e},{:e}",
+            p.strategy.name(),
+            p.seconds,
+            p.spp,
+            p.mse,
+            p.relmse
+        );
+    }
+    out
+}
+
+/// `scene,strategy,seconds,mse,efficiency_vs_light`, one row per scene and strategy at the end
+/// (an empty efficiency where light sampling was not compared).
+pub fn figure8_csv(comparisons: &[SceneComparison]) -> String {
+    let mut out = String::from("scene,strategy,seconds,mse,efficiency_vs_light\n");
+    for c in comparisons {
+        for r in &c.results {
+            let efficiency = r
+                .efficiency_vs_light
+                .map(|e| format!("{e:.6}"))
+                .unwrap_or_default();
+            let _ = writeln!(
+                out,
+                "{},{},{:.6},{:e},{efficiency}",
+                csv_field(&c.scene),
+                r.strategy.name(),
+                r.seconds,
+                r.mse
+            );
+        }
+    }
+    out
+}
+
+fn ratio(v: Option<f64>) -> String {
+    match v {
+        Some(v) if v >= 0.1 => format!("{v:.2}×"),
+        Some(v) => format!("{v:.2e}×"),
+        None => "–".to_owned(),
+    }
+}
+
+/// Markdown lines on the reference's origin and convergence.
+fn reference_markdown(info: Option<&ReferenceInfo>, origin: &ReferenceOrigin) -> String {
+    let mut out = String::new();
+    let from = match origin {
+        ReferenceOrigin::Rendered(Some(p)) => format!("rendered now, cached as `{}`", p.display()),
+        ReferenceOrigin::Rendered(None) => "rendered now (not cached)".to_owned(),
+        ReferenceOrigin::Cached(p) => format!("loaded from the cache, `{}`", p.display()),
+        ReferenceOrigin::File(p) => format!("loaded from `{}`", p.display()),
+    };
+    let _ = writeln!(out, "Reference: {from}.");
+    match info {
+        Some(i) => {
+            let c = &i.convergence;
+            let _ = writeln!(
+                out,
+                "{} sampling, {} spp in {:.1} s (seed {:#x}). Mean relative standard error of \
+                 its pixels: {:.3}%. Its noise floor, {} in MSE and {} in relMSE, is included \
+                 in every measured error above (not subtracted): errors within a few times \
+                 the floor are limited by the reference.",
+                i.strategy.name(),
+                i.spp,
+                i.seconds,
+                i.seed,
+                100.0 * c.mean_relative_standard_error,
+                sci(c.mse_floor),
+                sci(c.relmse_floor)
+            );
+        }
+        None => {
+            let _ = writeln!(
+                out,
+                "Its convergence is unknown (no sidecar JSON beside it)."
+            );
+        }
+    }
+    out
+}
+
+/// The per-scene summary: one row per strategy, then the reference's convergence.
+pub fn summary_markdown(c: &SceneComparison) -> String {
+    let s = &c.settings;
+    let mut out = String::new();
+    let _ = writeln!(out, "# Equal-time comparison: {}\n", c.scene);
+    let _ = writeln!(
+        out,
+        "{}×{} px, max depth {}, seed {}, {} s of pass render time per strategy.\n",
+        s.image.width, s.image.height, s.image.max_depth, s.seed, s.seconds
+    );
+    let floor = c.reference_info.as_ref().map(|i| i.convergence.mse_floor);
+    out.push_str(
+        "| strategy | spp | seconds | MSE | relMSE | efficiency vs light | MSE / reference floor |\n",
+    );
+    out.push_str("|---|---:|---:|---:|---:|---:|---:|\n");
+    for r in &c.results {
+        let over_floor = floor.filter(|&f| f > 0.0).map(|f| r.mse / f);
+        let _ = writeln!(
+            out,
+            "| {} | {} | {:.2} | {} | {} | {} | {} |",
+            r.strategy.name(),
+            r.spp,
+            r.seconds,
+            sci(r.mse),
+            sci(r.relmse),
+            ratio(r.efficiency_vs_light),
+            over_floor.map_or("–".to_owned(), |v| format!("{v:.1}"))
+        );
+    }
+    let _ = writeln!(
+        out,
+        "\nEfficiency is 1 / (MSE × seconds), relative to light sampling's: above 1 is better. \
+         relMSE = mean of (x − r)² / (r² + {RELMSE_EPSILON}) over pixels and channels.\n"
+    );
+    out.push_str(&reference_markdown(
+        c.reference_info.as_ref(),
+        &c.reference_origin,
+    ));
+    out
+}
+
+/// The Figure 8 summary: one row per scene and strategy, the best per scene, the references.
+pub fn figure8_markdown(comparisons: &[SceneComparison]) -> String {
+    let mut out = String::from("# Figure 8: equal-time MSE of each strategy\n\n");
+    if let Some(c) = comparisons.first() {
+        let s = &c.settings;
+        let _ = writeln!(
+            out,
+            "{}×{} px, max depth {}, seed {}, {} s of pass render time per strategy.\n",
+            s.image.width, s.image.height, s.image.max_depth, s.seed, s.seconds
+        );
+    }
+    out.push_str("| scene | strategy | spp | seconds | MSE | efficiency vs light |\n");
+    out.push_str("|---|---|---:|---:|---:|---:|\n");
+    for c in comparisons {
+        for r in &c.results {
+            let _ = writeln!(
+                out,
+                "| {} | {} | {} | {:.2} | {} | {} |",
+                c.scene,
+                r.strategy.name(),
+                r.spp,
+                r.seconds,
+                sci(r.mse),
+                ratio(r.efficiency_vs_light)
+            );
+        }
+    }
+    out.push_str("\nEfficiency is 1 / (MSE × seconds), relative to light sampling's.\n\n");
+    for c in comparisons {
+        let best = c
+            .results
+            .iter()
+            .filter(|r| r.efficiency.is_finite())
+            .max_by(|a, b| a.efficiency.total_cmp(&b.efficiency));
+        if let Some(best) = best {
+            let _ = writeln!(
+                out,
+                "- {}: most efficient is {}.",
+                c.scene,
+                best.strategy.name()
+            );
+        }
+    }
+    for c in comparisons {
+        let _ = write!(out, "\n## {}\n\n", c.scene);
+        out.push_str(&reference_markdown(
+            c.reference_info.as_ref(),
+            &c.reference_origin,
+        ));
+    }
+    out
+}
+
+/// A log range covering `values` (positive, finite ones only), padded a little.
+fn log_range(values: impl Iterator<Item = f64>) -> std::ops::Range<f64> {
+    let (lo, hi) = values
+        .filter(|v| v.is_finite() && *v > 0.0)
+        .fold((f64::INFINITY, 0.0f64), |(lo, hi), v| {
+            (lo.min(v), hi.max(v))
+        });
+    if lo > hi {
+        return 0.1..1.0;
+    }
+    let (lo, hi) = if hi / lo < 1.5 {
+        (lo / 1.5, hi * 1.5)
+    } else {
+        (lo, hi)
+    };
+    lo / 1.2..hi * 1.2
+}
+
+type PlotError = Box<dyn std::error::Error>;
+
+/// Draws one log–log chart of MSE against seconds, a line per strategy, on `area`.
+fn draw_convergence<DB: plotters::prelude::DrawingBackend>(
+    area: &plotters::prelude::DrawingArea<DB, plotters::coord::Shift>,
+    c: &SceneComparison,
+) -> Result<(), PlotError>
+where
+    DB::ErrorType: 'static,
+{
+    use plotters::prelude::*;
+    let x = log_range(c.points.iter().map(|p| p.seconds));
+    let y = log_range(c.points.iter().map(|p| p.mse));
+    let mut chart = ChartBuilder::on(area)
+        .caption(
+            format!("{}: MSE at equal time", c.scene),
+            ("sans-serif", 20),
+        )
+        .margin(12)
+        .x_label_area_size(40)
+        .y_label_area_size(70)
+        .build_cartesian_2d(x.log_scale(), y.log_scale())?;
+    chart
+        .configure_mesh()
+        .x_desc("seconds of render time")
+        .y_desc("MSE")
+        .x_label_formatter(&|v| tick_label(*v))
+        .y_label_formatter(&|v| tick_label(*v))
+        .draw()?;
+    for &strategy in &c.settings.strategies {
+        let style = colour(strategy).stroke_width(2);
+        let line: Vec<(f64, f64)> = c
+            .points
+            .iter()
+            .filter(|p| p.strategy == strategy && p.seconds > 0.0 && p.mse > 0.0)
+            .map(|p| (p.seconds, p.mse))
+            .collect();
+        chart
+            .draw_series(LineSeries::new(line, style))?
+            .label(strategy.name())
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], style));
+    }
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::UpperRight)
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .draw()?;
+    Ok(())
+}
+
+/// An SVG of one log–log chart per comparison, side by side.
+pub fn convergence_svg(comparisons: &[SceneComparison]) -> Result<String> {
+    use plotters::prelude::*;
+    let mut svg = String::new();
+    {
+        let panels = comparisons.len().max(1);
+        let root =
+            SVGBackend::with_string(&mut svg, (640 * panels as u32, 480)).into_drawing_area();
+        let drawn: Result<(), PlotError> = (|| {
+            root.fill(&WHITE)?;
+            for (area, c) in root.split_evenly((1, panels)).iter().zip(comparisons) {
+                draw_convergence(area, c)?;
+            }
+            root.present()?;
+            Ok(())
+        })();
+        drawn.map_err(|e| anyhow::anyhow!("cannot draw the plot: {e}"))?;
+    }
+    Ok(svg)
+}
+
+/// Writes `convergence.csv`, `convergence.svg` and `summary.md` into `dir` (created if needed).
+pub fn write_scene_outputs(dir: &Path, c: &SceneComparison) -> Result<Vec<PathBuf>> {
+    std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create", dir.display()))?;
+    let csv = dir.join("convergence.csv");
+    write_file(&csv, convergence_csv(c).as_bytes())?;
+    let svg = dir.join("convergence.svg");
+    let plot =
+        convergence_svg(std::slice::from_ref(c)).with_context(|| svg.display().to_string())?;
+    write_file(&svg, plot.as_bytes())?;
+    let md = dir.join("summary.md");
+    write_file(&md, summary_markdown(c).as_bytes())?;
+    Ok(vec![csv, svg, md])
+}
+
+/// Writes `figure8.csv`, `figure8.md` and `figure8.svg` into `dir`.
+pub fn write_figure8_outputs(dir: &Path, comparisons: &[SceneComparison]) -> Result<Vec<PathBuf>> {
+    std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create", dir.display()))?;
+    let csv = dir.join("figure8.csv");
+    write_file(&csv, figure8_csv(comparisons).as_bytes())?;
+    let md = dir.join("figure8.md");
+    write_file(&md, figure8_markdown(comparisons).as_bytes())?;
+    let svg = dir.join("figure8.svg");
+    let plot = convergence_svg(comparisons).with_context(|| svg.display().to_string())?;
+    write_file(&svg, plot.as_bytes())?;
+    Ok(vec![csv, md, svg])
+}
