@@ -559,6 +559,9 @@ impl CompareView {
                 ui.colored_label(Color32::from_rgb(255, 160, 60), note);
             }
         }
+        if let Some(error) = self.worker.as_ref().and_then(|w| w.error()) {
+            ui.colored_label(Color32::LIGHT_RED, error);
+        }
         ui.add_enabled(
             self.reference_file.is_none(),
             egui::Slider::new(&mut settings.reference_seconds, 0.1..=600.0)
