@@ -2,9 +2,10 @@
 //! cache, and the files `portalview compare` writes. Run in release
 //! (`cargo test --release --test compare`); a few seconds in all.
 
+use clap::Parser;
 use glam::Vec3;
 use indicatif::ProgressBar;
-use portalview::cli::{Command, CompareArgs, run};
+use portalview::cli::{Cli, run};
 use portalview::compare::{
     EqualTime, ImageSpec, RELMSE_EPSILON, ReferenceBudget, ReferenceOrigin, cache_key,
     cached_reference, mse, relmse,
@@ -31,22 +32,38 @@ fn temp_dir(name: &str) -> PathBuf {
     dir
 }
 
-fn compare_args(out: &Path, cache: &Path) -> CompareArgs {
-    CompareArgs {
-        scene: Some("fig8b".to_owned()),
-        figure8: false,
-        strategies: Strategy::ALL.to_vec(),
-        seconds: 0.2,
-        out: out.to_owned(),
-        width: 24,
-        height: Some(18),
-        seed: 3,
-        max_depth: 1,
-        reference: None,
-        reference_seconds: None,
-        reference_spp: Some(64),
-        cache_dir: Some(cache.to_owned()),
+/// Runs `portalview compare` as a user would type it: a short fig8b comparison of every
+/// strategy writing into `out`, with references cached in `cache`; `overrides` replace or add
+/// flags (a flag with an empty value is a switch and drops `--scene`).
+fn run_compare(out: &Path, cache: &Path, overrides: &[(&str, &str)]) {
+    let (out, cache) = (out.display().to_string(), cache.display().to_string());
+    let mut flags: Vec<(&str, &str)> = vec![
+        ("--scene", "fig8b"),
+        ("--seconds", "0.2"),
+        ("--out", &out),
+        ("--width", "24"),
+        ("--height", "18"),
+        ("--seed", "3"),
+        ("--max-depth", "1"),
+        ("--reference-spp", "64"),
+        ("--cache-dir", &cache),
+    ];
+    for &(flag, value) in overrides {
+        if value.is_empty() {
+            flags.retain(|(f, _)| *f != "--scene");
+        }
+        flags.retain(|(f, _)| *f != flag);
+        flags.push((flag, value));
     }
+    let mut args = vec!["portalview", "compare"];
+    for (flag, value) in flags {
+        args.push(flag);
+        if !value.is_empty() {
+            args.push(value);
+        }
+    }
+    let cli = Cli::try_parse_from(args).unwrap();
+    run(cli.command.unwrap()).unwrap();
 }
 
 /// Parses a CSV without quoted fields: the header and the rows.
@@ -106,7 +123,7 @@ fn short_compare_writes_csv_svg_and_summary() {
     let _serial = serial();
     let root = temp_dir("compare");
     let (out, cache) = (root.join("out"), root.join("cache"));
-    run(Command::Compare(compare_args(&out, &cache))).unwrap();
+    run_compare(&out, &cache, &[]);
 
     let (header, rows) = read_csv(&out.join("convergence.csv"));
     assert_eq!(header, "scene,strategy,seconds,spp,mse,relmse");
@@ -164,16 +181,14 @@ fn figure8_writes_its_table_for_every_scene() {
     let _serial = serial();
     let root = temp_dir("figure8");
     let (out, cache) = (root.join("out"), root.join("cache"));
-    let args = CompareArgs {
-        scene: None,
-        figure8: true,
-        seconds: 0.05,
-        width: 16,
-        height: Some(12),
-        reference_spp: Some(16),
-        ..compare_args(&out, &cache)
-    };
-    run(Command::Compare(args)).unwrap();
+    let overrides = [
+        ("--figure8", ""),
+        ("--seconds", "0.05"),
+        ("--width", "16"),
+        ("--height", "12"),
+        ("--reference-spp", "16"),
+    ];
+    run_compare(&out, &cache, &overrides);
     let (header, rows) = read_csv(&out.join("figure8.csv"));
     assert_eq!(header, "scene,strategy,seconds,mse,efficiency_vs_light");
     assert_eq!(rows.len(), 3 * Strategy::ALL.len());

@@ -5,6 +5,7 @@ use clap::Args;
 use std::path::PathBuf;
 use std::sync::atomic::AtomicBool;
 
+use super::ImageArgs;
 use crate::compare::report::sci;
 use crate::compare::*;
 use crate::light::Strategy;
@@ -33,15 +34,9 @@ pub struct CompareArgs {
     pub out: PathBuf,
     #[arg(long, default_value_t = 256)]
     pub width: u32,
-    /// Image height (default: from the width and the camera's aspect ratio).
-    #[arg(long)]
-    pub height: Option<u32>,
-    /// Seed of the compared renders (the reference uses another, derived from it).
-    #[arg(long, default_value_t = 0)]
-    pub seed: u64,
-    /// Path vertices after the camera (1 = direct light only, as in the thesis).
-    #[arg(long, default_value_t = 1)]
-    pub max_depth: u32,
+    /// Height, seed (the reference uses another, derived from it) and depth.
+    #[command(flatten)]
+    pub image: ImageArgs,
     /// A reference image (.exr of the same size) instead of rendering one; a .json sidecar
     /// beside it, as the cache writes, tells its convergence.
     #[arg(long, conflicts_with_all = ["figure8", "reference_seconds", "reference_spp"])]
@@ -111,13 +106,14 @@ pub fn run(args: &CompareArgs) -> Result<()> {
             scene.name = name.clone();
         }
         let height = args
+            .image
             .height
             .unwrap_or_else(|| scene.camera.height_for_width(args.width));
         anyhow::ensure!(height > 0, "--height must be positive");
         let image = ImageSpec {
             width: args.width,
             height,
-            max_depth: args.max_depth,
+            max_depth: args.image.max_depth,
         };
         eprintln!(
             "{}: {}x{} px, reference",
@@ -127,14 +123,14 @@ pub fn run(args: &CompareArgs) -> Result<()> {
         let reference = match (&args.reference, &cache_dir) {
             (Some(file), _) => load_reference(file, image.width, image.height)?,
             (None, Some(dir)) => {
-                cached_reference(dir, &scene, image, args.seed, budget, &progress)?
+                cached_reference(dir, &scene, image, args.image.seed, budget, &progress)?
             }
             (None, None) => {
                 eprintln!(
                     "no cache folder (set XDG_CACHE_HOME or HOME, or --cache-dir): not caching"
                 );
                 let never = AtomicBool::new(false);
-                render_reference(&scene, image, args.seed, budget, &never, &progress)
+                render_reference(&scene, image, args.image.seed, budget, &never, &progress)
                     .map_err(|e| anyhow::anyhow!("{}: {e}", scene.name))?
             }
         };
@@ -148,7 +144,7 @@ pub fn run(args: &CompareArgs) -> Result<()> {
                     info.key
                 );
             }
-            if info.seed == args.seed {
+            if info.seed == args.image.seed {
                 eprintln!(
                     "warning: {}: rendered with the same seed as the comparison, so its noise \
                      is correlated with theirs (use another --seed)",
@@ -170,7 +166,7 @@ pub fn run(args: &CompareArgs) -> Result<()> {
             strategies: args.strategies.clone(),
             seconds: args.seconds,
             image,
-            seed: args.seed,
+            seed: args.image.seed,
         };
         let progress = progress_bar(0, "{bar:40} {msg}  {elapsed_precise}");
         let comparison = compare(&scene, &settings, &reference, &progress);

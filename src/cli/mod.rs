@@ -8,7 +8,7 @@ mod render;
 mod view;
 
 use anyhow::Result;
-use clap::{Parser, Subcommand};
+use clap::{Args, Parser, Subcommand};
 use std::path::PathBuf;
 
 pub use bench::BenchArgs;
@@ -55,4 +55,17 @@ pub fn run(command: Command) -> Result<()> {
         Command::Bench(args) => bench::run(&args),
         Command::Compare(args) => compare::run(&args),
     }
+}
+
+/// Image options shared by `render` and `compare` (their widths differ in default).
+#[derive(Args, Debug, Clone)]
+pub struct ImageArgs {
+    /// Image height (default: from the width and the camera's aspect ratio).
+    #[arg(long)]
+    pub height: Option<u32>,
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Path vertices after the camera (1 = direct light only, as in the thesis).
+    #[arg(long, default_value_t = 1)]
+    pub max_depth: u32,
 }

@@ -6,6 +6,7 @@ use std::path::PathBuf;
 use std::sync::atomic::AtomicBool;
 use std::time::{Duration, Instant};
 
+use super::ImageArgs;
 use crate::compare::progress_bar;
 use crate::light::Strategy;
 use crate::light::Technique;
@@ -29,14 +30,8 @@ pub struct RenderArgs {
     /// Image width (default 640).
     #[arg(long, default_value_t = 640)]
     pub width: u32,
-    /// Image height (default: from the width and the camera's aspect ratio).
-    #[arg(long)]
-    pub height: Option<u32>,
-    #[arg(long, default_value_t = 0)]
-    pub seed: u64,
-    /// Path vertices after the camera (1 = direct light only).
-    #[arg(long, default_value_t = 1)]
-    pub max_depth: u32,
+    #[command(flatten)]
+    pub image: ImageArgs,
     /// Exposure in stops, for PNG output.
     #[arg(long, default_value_t = 0.0)]
     pub exposure: f32,
@@ -58,14 +53,15 @@ pub fn run(args: &RenderArgs) -> Result<()> {
     let scene = Scene::open(&args.scene)?;
     let width = args.width;
     let height = args
+        .image
         .height
         .unwrap_or_else(|| scene.camera.height_for_width(width));
     anyhow::ensure!(height > 0, "--height must be positive");
     let settings = RenderSettings {
         strategy: args.strategy,
         alpha: args.alpha,
-        max_depth: args.max_depth,
-        seed: args.seed,
+        max_depth: args.image.max_depth,
+        seed: args.image.seed,
     };
     let integrator = Integrator::new(&scene, settings);
     let (film, stats, elapsed) = match args.seconds {
