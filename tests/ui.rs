@@ -146,6 +146,11 @@ fn save_then_load_round_trips_the_portals() {
     h.run_steps(2);
     h.get_by_label("Save portals").click();
     h.run_steps(2);
+    step_until(&mut h, "saved", |a| !a.is_busy());
+    assert_eq!(
+        h.state().message(),
+        Some(&*format!("saved {}", path.display()))
+    );
     assert!(!h.state().editor.dirty);
     let reloaded = portalview::scene::Scene::load(&path).unwrap();
     let portal = &reloaded.desc.portals[0];

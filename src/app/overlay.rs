@@ -36,7 +36,7 @@ impl OverlayKind {
 }
 
 /// A region's colour; a technique shares the colour of the region that uses it.
-pub fn region_colour(region: Region) -> Color32 {
+pub(crate) fn region_colour(region: Region) -> Color32 {
     match region {
         Region::Behind => Color32::from_rgb(128, 128, 128),
         Region::Outside => Color32::from_rgb(70, 80, 200),
@@ -47,7 +47,7 @@ pub fn region_colour(region: Region) -> Color32 {
 }
 
 /// `None` is "the light alone" (behind, outside, or no portal).
-pub fn technique_colour(technique: Option<Technique>) -> Color32 {
+pub(crate) fn technique_colour(technique: Option<Technique>) -> Color32 {
     match technique {
         Some(Technique::Light) => region_colour(Region::Antiumbra),
         Some(Technique::Portal) => region_colour(Region::Antiantumbra),
@@ -57,7 +57,7 @@ pub fn technique_colour(technique: Option<Technique>) -> Color32 {
 }
 
 /// The overlay as an image with `opacity` in [0, 1]; pixels that see nothing stay clear.
-pub fn overlay_image(
+pub(crate) fn overlay_image(
     primary: &PrimaryBuffer,
     kind: OverlayKind,
     portal: Option<usize>,

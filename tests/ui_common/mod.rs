@@ -14,20 +14,25 @@ pub fn serial() -> std::sync::MutexGuard<'static, ()> {
     SERIAL.lock().unwrap_or_else(|e| e.into_inner())
 }
 
-/// One factory for the app under test: `scene` opened in a 1100×700 window, then `setup`.
+/// One factory for the app under test: `scene` opened in a 1100×700 window, then `setup`;
+/// returned once the scene (which loads in the background) is on screen.
 pub fn harness_with(
     scene: &str,
     setup: impl FnOnce(&mut PortalViewApp) + 'static,
 ) -> Harness<'static, PortalViewApp> {
     let scene = scene.to_owned();
-    Harness::builder()
+    let mut h = Harness::builder()
         .with_size(egui::vec2(1100.0, 700.0))
         .wgpu()
         .build_eframe(move |cc| {
             let mut app = PortalViewApp::new(&cc.egui_ctx, None, Some(scene)).unwrap();
             setup(&mut app);
             app
-        })
+        });
+    step_until(&mut h, "the first scene", |a| {
+        a.scene().is_some() && !a.is_busy()
+    });
+    h
 }
 
 /// Steps the UI until `done` holds (the workers run on their own threads), or fails with a

@@ -1,0 +1,98 @@
+//! Opening and saving scenes off the UI thread: the app hands a [`Job`] over, polls it each
+//! frame, and the thread wakes the UI when it is done. Every load goes through here, including
+//! the first scene and the reload after saving.
+
+use std::path::PathBuf;
+use std::sync::mpsc::{Receiver, TryRecvError};
+
+use crate::asset::desc::{PortalDesc, SceneDesc};
+use crate::asset::gltf;
+use crate::scene::Scene;
+
+/// What a finished job produced.
+pub(super) enum Done {
+    /// A scene opened by built-in name or path.
+    Opened { name: String, scene: Scene },
+    /// The portals written to `path`, and the file read back (so that new portals know their
+    /// nodes). `portals` are those written.
+    Saved {
+        path: PathBuf,
+        scene: Scene,
+        portals: Vec<PortalDesc>,
+    },
+}
+
+/// Where and what to save.
+pub(super) struct SaveRequest {
+    pub target: PathBuf,
+    /// Write the portals into the file the scene came from (only portal nodes change);
+    /// otherwise export `desc` as a new `.glb`.
+    pub into_source: bool,
+    /// The scene with the portals and camera to save.
+    pub desc: SceneDesc,
+}
+
+/// A job on its own thread.
+pub(super) struct Job {
+    /// What it does, in a few words ("opening fig8a").
+    pub what: String,
+    rx: Receiver<Result<Done, String>>,
+}
+
+impl Job {
+    /// Loads a built-in scene or a `.gltf`/`.glb` file.
+    pub fn open(name: String, ctx: &egui::Context) -> Job {
+        let what = format!("opening {name}");
+        Job::spawn(what, ctx, move || {
+            let scene = Scene::open(&name).map_err(|e| e.to_string())?;
+            Ok(Done::Opened { name, scene })
+        })
+    }
+
+    /// Writes the portals, then reads the file back.
+    pub fn save(request: SaveRequest, ctx: &egui::Context) -> Job {
+        let what = format!("saving {}", request.target.display());
+        Job::spawn(what, ctx, move || {
+            let SaveRequest {
+                target,
+                into_source,
+                desc,
+            } = request;
+            let written = if into_source {
+                gltf::save_portals(&target, &desc.portals)
+            } else {
+                gltf::export_glb(&desc, &target)
+            };
+            written.map_err(|e| e.to_string())?;
+            let scene = Scene::load(&target).map_err(|e| e.to_string())?;
+            Ok(Done::Saved {
+                path: target,
+                scene,
+                portals: desc.portals,
+            })
+        })
+    }
+
+    fn spawn(
+        what: String,
+        ctx: &egui::Context,
+        work: impl FnOnce() -> Result<Done, String> + Send + 'static,
+    ) -> Job {
+        let (tx, rx) = std::sync::mpsc::channel();
+        let ctx = ctx.clone();
+        std::thread::spawn(move || {
+            let _ = tx.send(work());
+            ctx.request_repaint();
+        });
+        Job { what, rx }
+    }
+
+    /// The job's result, once it has one (a thread that died says so).
+    pub fn poll(&self) -> Option<Result<Done, String>> {
+        match self.rx.try_recv() {
+            Ok(result) => Some(result),
+            Err(TryRecvError::Empty) => None,
+            Err(TryRecvError::Disconnected) => Some(Err(format!("{}: stopped", self.what))),
+        }
+    }
+}

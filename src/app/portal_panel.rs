@@ -1,0 +1,137 @@
+//! The portal panel: the list of portals with their warnings, adding a portal for a light,
+//! and the selected portal's exact fields (centre, rotation, scale, alpha).
+
+use egui::{Color32, Ui};
+use glam::Quat;
+
+use super::{Command, PortalViewApp};
+
+impl PortalViewApp {
+    pub(super) fn portal_panel(&mut self, ui: &mut Ui, commands: &mut Vec<Command>) {
+        let Self {
+            current,
+            editor,
+            overlay_portal,
+            ..
+        } = self;
+        let Some(current) = current else {
+            ui.label("no scene yet");
+            return;
+        };
+        for (i, portal) in editor.portals.iter().enumerate() {
+            let broken = current.portal_errors.iter().any(|(e, _)| *e == i);
+            let label = if broken {
+                format!("(!) {}", portal.name)
+            } else {
+                portal.name.clone()
+            };
+            if ui
+                .selectable_label(editor.selected == Some(i), label)
+                .clicked()
+            {
+                editor.selected = Some(i);
+                *overlay_portal = current.rendered_index(i);
+            }
+        }
+        for (i, message) in &current.portal_errors {
+            ui.colored_label(
+                Color32::from_rgb(255, 160, 60),
+                format!("portal {i}: {message}"),
+            );
+        }
+        ui.horizontal(|ui| {
+            for (i, light) in current.scene.geometry.lights.iter().enumerate() {
+                if light.polygon.is_some()
+                    && ui
+                        .button(format!("Add portal for {}", light.name))
+                        .clicked()
+                {
+                    commands.push(Command::AddPortal(i));
+                }
+            }
+        });
+        let Some(i) = editor.selected.filter(|&i| i < editor.portals.len()) else {
+            ui.label("no portal selected");
+            return;
+        };
+        let Some(mut pose) = editor.pose(i) else {
+            return;
+        };
+        let before = pose;
+        let (mut ex, mut ey, mut ez) = pose.rotation.to_euler(glam::EulerRot::XYZ);
+        let (ex0, ey0, ez0) = (ex, ey, ez);
+        let mut gesture = false;
+        let mut alpha = editor.portals[i].alpha;
+        egui::Grid::new("portal fields")
+            .num_columns(2)
+            .show(ui, |ui| {
+                ui.label("centre");
+                ui.horizontal(|ui| {
+                    for (v, axis) in [
+                        (&mut pose.center.x, "x"),
+                        (&mut pose.center.y, "y"),
+                        (&mut pose.center.z, "z"),
+                    ] {
+                        let r = ui.add(
+                            egui::DragValue::new(v)
+                                .speed(0.01)
+                                .prefix(format!("{axis} ")),
+                        );
+                        gesture |= r.drag_started() || r.gained_focus();
+                    }
+                });
+                ui.end_row();
+                ui.label("rotation °");
+                ui.horizontal(|ui| {
+                    for (v, axis) in [(&mut ex, "x"), (&mut ey, "y"), (&mut ez, "z")] {
+                        let mut deg = v.to_degrees();
+                        let r = ui.add(
+                            egui::DragValue::new(&mut deg)
+                                .speed(0.5)
+                                .prefix(format!("{axis} ")),
+                        );
+                        gesture |= r.drag_started() || r.gained_focus();
+                        *v = deg.to_radians();
+                    }
+                });
+                ui.end_row();
+                let label = ui.label("scale");
+                let mut s = pose.scale.max_element();
+                let r = ui
+                    .add(egui::DragValue::new(&mut s).speed(0.01).range(0.01..=100.0))
+                    .labelled_by(label.id);
+                gesture |= r.drag_started() || r.gained_focus();
+                if r.changed() {
+                    pose.scale *= s / pose.scale.max_element().max(1e-6);
+                }
+                ui.end_row();
+                let label = ui.label("alpha");
+                let r = ui
+                    .add(egui::Slider::new(&mut alpha, 0.0..=1.0))
+                    .labelled_by(label.id);
+                gesture |= r.drag_started() || r.gained_focus();
+                ui.end_row();
+            });
+        if (ex, ey, ez) != (ex0, ey0, ez0) {
+            pose.rotation = Quat::from_euler(glam::EulerRot::XYZ, ex, ey, ez);
+        }
+        if gesture {
+            editor.checkpoint();
+        }
+        if pose != before || alpha != editor.portals[i].alpha {
+            editor.set_pose(i, pose);
+            editor.portals[i].alpha = alpha;
+            commands.push(Command::PortalEdited);
+        }
+        if ui.button("Delete portal").clicked() {
+            commands.push(Command::DeletePortal(i));
+        }
+        if editor.dirty {
+            ui.label(if current.scene.source.is_some() {
+                "unsaved changes (File > Save portals)"
+            } else {
+                "unsaved changes (File > Save as .glb…)"
+            });
+        }
+    }
+}

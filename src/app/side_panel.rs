@@ -1,0 +1,244 @@
+//! The render mode's side panel (notices, render settings, the overlay and its legend, the
+//! portal panel, statistics) and the status bar.
+
+use egui::Color32;
+
+use super::overlay::{self, OverlayKind};
+use super::{Command, PortalViewApp, ViewMode, ViewerSettings};
+use crate::light::antishadow::Region;
+use crate::light::{Strategy, Technique};
+
+impl PortalViewApp {
+    /// The render mode's panels: controls on the left, the image in the middle.
+    pub(super) fn render_panels(&mut self, ui: &mut egui::Ui, commands: &mut Vec<Command>) {
+        egui::Panel::left("controls")
+            .resizable(true)
+            .default_size(330.0)
+            .show(ui, |ui| {
+                egui::ScrollArea::vertical().show(ui, |ui| {
+                    if let Some(m) = self.message.clone() {
+                        ui.horizontal(|ui| {
+                            ui.colored_label(Color32::LIGHT_RED, m);
+                            if ui.small_button("x").clicked() {
+                                self.message = None;
+                            }
+                        });
+                    }
+                    egui::CollapsingHeader::new("Render")
+                        .default_open(true)
+                        .show(ui, |ui| self.render_controls(ui, commands));
+                    egui::CollapsingHeader::new("Antishadow overlay")
+                        .default_open(true)
+                        .show(ui, |ui| self.overlay_controls(ui));
+                    egui::CollapsingHeader::new("Portals")
+                        .default_open(true)
+                        .show(ui, |ui| self.portal_panel(ui, commands));
+                    egui::CollapsingHeader::new("Statistics")
+                        .default_open(false)
+                        .show(ui, |ui| self.statistics(ui));
+                });
+            });
+        egui::CentralPanel::default().show(ui, |ui| self.viewport(ui, commands));
+    }
+
+    fn render_controls(&mut self, ui: &mut egui::Ui, commands: &mut Vec<Command>) {
+        let ViewerSettings {
+            strategy,
+            alpha,
+            max_depth,
+            exposure,
+            false_colour,
+            resolution_scale,
+            ..
+        } = &mut self.settings;
+        let name = self.current.as_ref().map_or("(loading)", |c| &c.scene.name);
+        ui.label(egui::RichText::new(format!("Scene: {name}")).strong());
+        ui.label("Strategy (keys 1–4)");
+        ui.horizontal_wrapped(|ui| {
+            for s in Strategy::ALL {
+                if ui.selectable_value(strategy, s, s.name()).changed() {
+                    commands.push(Command::Restart);
+                }
+            }
+        });
+        let mut override_alpha = alpha.is_some();
+        if ui.checkbox(&mut override_alpha, "override alpha").changed() {
+            *alpha = override_alpha.then_some(0.1);
+            commands.push(Command::Restart);
+        }
+        if let Some(a) = alpha
+            && ui
+                .add(egui::Slider::new(a, 0.0..=1.0).text("alpha"))
+                .changed()
+        {
+            commands.push(Command::Restart);
+        }
+        if ui
+            .add(egui::Slider::new(max_depth, 1..=8).text("max depth"))
+            .changed()
+        {
+            commands.push(Command::Restart);
+        }
+        if ui
+            .add(egui::Slider::new(resolution_scale, 0.125..=1.0).text("resolution"))
+            .changed()
+        {
+            // The size change restarts the render.
+            self.requested_size = (0, 0);
+        }
+        let mut retone = ui
+            .add(egui::Slider::new(exposure, -8.0..=8.0).text("exposure"))
+            .changed();
+        retone |= ui
+            .checkbox(false_colour, "false-colour luminance")
+            .changed();
+        ui.horizontal(|ui| {
+            if ui
+                .button(if self.paused { "Resume" } else { "Pause" })
+                .clicked()
+            {
+                self.paused = !self.paused;
+                commands.push(Command::Restart);
+            }
+            if ui.button("Reset camera").clicked() {
+                commands.push(Command::ResetCamera);
+            }
+        });
+        if retone {
+            self.view.upload(ui.ctx(), *exposure, *false_colour);
+        }
+    }
+
+    fn overlay_controls(&mut self, ui: &mut egui::Ui) {
+        let settings = &mut self.settings;
+        egui::ComboBox::from_label("overlay")
+            .selected_text(settings.overlay.name())
+            .show_ui(ui, |ui| {
+                for k in OverlayKind::ALL {
+                    ui.selectable_value(&mut settings.overlay, k, k.name());
+                }
+            });
+        let portals = self
+            .current
+            .as_ref()
+            .map_or(&[][..], |c| &c.rendered.portals);
+        let portal_name = |i: Option<usize>| match i {
+            None => "all portals".to_owned(),
+            Some(i) => portals.get(i).map_or("?".into(), |p| p.name.clone()),
+        };
+        egui::ComboBox::from_label("regions of")
+            .selected_text(portal_name(self.overlay_portal))
+            .show_ui(ui, |ui| {
+                ui.selectable_value(&mut self.overlay_portal, None, portal_name(None));
+                for i in 0..portals.len() {
+                    ui.selectable_value(&mut self.overlay_portal, Some(i), portal_name(Some(i)));
+                }
+            });
+        ui.add(egui::Slider::new(&mut settings.overlay_opacity, 0.0..=1.0).text("opacity"));
+        ui.checkbox(&mut settings.show_outlines, "portal and light outlines");
+        ui.checkbox(&mut settings.show_volumes, "antishadow volume edges");
+        if ui
+            .checkbox(&mut settings.brute_force_regions, "brute-force classifier (debug)")
+            .on_hover_text("Regions from projecting the light through each point onto the portal plane, instead of the precomputed planes")
+            .changed()
+        {
+            self.requested_size = (0, 0);
+        }
+        // The legend: colours and the share of pixels in each region.
+        let shares = self.view.shares(self.overlay_portal);
+        egui::Grid::new("legend").num_columns(3).show(ui, |ui| {
+            for (k, region) in Region::ALL.into_iter().enumerate() {
+                let (rect, _) =
+                    ui.allocate_exact_size(egui::vec2(14.0, 14.0), egui::Sense::hover());
+                ui.painter()
+                    .rect_filled(rect, 2.0, overlay::region_colour(region));
+                let technique = Strategy::Antishadow.technique(region);
+                ui.label(format!(
+                    "{}: {}",
+                    region.name(),
+                    technique.map_or("light alone", Technique::name)
+                ));
+                ui.label(shares.map_or("–".into(), |s| format!("{:.1}%", 100.0 * s[k])));
+                ui.end_row();
+            }
+        });
+    }
+
+    fn statistics(&self, ui: &mut egui::Ui) {
+        let Some(f) = &self.view.frame else {
+            ui.label("waiting for the first frame…");
+            return;
+        };
+        let s = &f.stats;
+        let secs = f.elapsed.as_secs_f64().max(1e-9);
+        egui::Grid::new("stats").num_columns(2).show(ui, |ui| {
+            ui.label("samples/s");
+            ui.label(format!("{:.2} M", f.samples_per_second() / 1e6));
+            ui.end_row();
+            ui.label("rays/s");
+            ui.label(format!("{:.2} M", s.rays() as f64 / secs / 1e6));
+            ui.end_row();
+            ui.label("shadow rays");
+            ui.label(format!("{}", s.shadow_rays));
+            ui.end_row();
+            ui.label("sampling time");
+            ui.label(format!(
+                "{:.0} ns / sample",
+                s.sampling_ns as f64 / s.light_samples().max(1) as f64
+            ));
+            ui.end_row();
+            for (k, r) in Region::ALL.into_iter().enumerate() {
+                let share = s.regions[k] as f64 / s.shading_points().max(1) as f64;
+                ui.label(format!("points in {}", r.name()));
+                ui.label(format!("{:.1}%", 100.0 * share));
+                ui.end_row();
+            }
+            for (k, t) in Technique::ALL.into_iter().enumerate() {
+                ui.label(format!("{} samples", t.name()));
+                ui.label(format!("{}", s.techniques[k]));
+                ui.end_row();
+            }
+            ui.label("empty samples");
+            ui.label(format!("{}", s.empty_samples));
+            ui.end_row();
+            if let Some(l) = self.first_frame_latency {
+                ui.label("first frame after a change");
+                ui.label(format!("{:.0} ms", l.as_secs_f64() * 1e3));
+                ui.end_row();
+            }
+            if let Some(t) = self.mean_frame_time() {
+                ui.label("UI frame time");
+                ui.label(format!("{:.1} ms", t.as_secs_f64() * 1e3));
+                ui.end_row();
+            }
+        });
+    }
+
+    pub(super) fn status_bar(&self, ui: &mut egui::Ui) {
+        if self.mode == ViewMode::Compare {
+            ui.horizontal(|ui| self.compare.status(ui));
+            return;
+        }
+        ui.horizontal(|ui| {
+            match &self.view.frame {
+                Some(f) => {
+                    ui.label(format!(
+                        "{} spp{}  {}×{}  {:.1} s  {:.2} M samples/s",
+                        f.spp,
+                        if f.preview { " (preview)" } else { "" },
+                        f.width,
+                        f.height,
+                        f.elapsed.as_secs_f32(),
+                        f.samples_per_second() / 1e6
+                    ));
+                }
+                None => {
+                    ui.label("starting…");
+                }
+            }
+            if self.paused {
+                ui.label("paused");
+            }
+        });
+    }
+}

@@ -1,0 +1,159 @@
+//! Opening and saving files in the viewer as a user does, driven by egui_kittest with software
+//! Vulkan: File → Open glTF… shows the in-app file dialog and the chosen file loads; a path
+//! typed into the menu bar's field opens with Enter; a broken file's error names it in the
+//! side panel while the current scene stays; File → Save as .glb… saves through the dialog.
+
+use egui::accesskit::Role;
+use egui_kittest::Harness;
+use egui_kittest::kittest::Queryable;
+use glam::Vec3;
+use portalview::app::PortalViewApp;
+use portalview::scene::Scene;
+use std::path::{Path, PathBuf};
+
+mod ui_common;
+
+use ui_common::{harness_with, serial, step_until};
+
+fn asset(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("assets")
+        .join(name)
+}
+
+/// A fresh, empty folder for this test's files.
+fn temp_dir(name: &str) -> PathBuf {
+    let dir =
+        std::env::temp_dir().join(format!("portalview-ui-files-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// Whether the scene on screen came from `path`, and nothing is loading.
+fn shows_file(app: &PortalViewApp, path: &Path) -> bool {
+    !app.is_busy() && app.scene().and_then(|s| s.source.as_deref()) == Some(path)
+}
+
+/// Types `text` into the menu bar's path field and presses Enter.
+fn type_path(h: &mut Harness<'static, PortalViewApp>, text: &str) {
+    h.get_by_role_and_label(Role::TextInput, "Path:").click();
+    h.run_steps(2);
+    h.get_by_role_and_label(Role::TextInput, "Path:")
+        .type_text(text);
+    h.step();
+    h.key_press(egui::Key::Enter);
+    h.run_steps(2);
+}
+
+#[test]
+fn the_open_dialog_loads_the_chosen_file() {
+    let _serial = serial();
+    // The dialog starts in the folder of the newest recent file: the assets.
+    let mut h = harness_with("lampshade", |app| {
+        app.settings.recent = vec![asset("fig8a.glb").display().to_string()];
+    });
+    h.get_by_label("File").click();
+    h.run_steps(2);
+    h.get_by_label("Open glTF…").click();
+    h.run_steps(3);
+    // The dialog lists the glTF files of the folder and nothing else.
+    assert!(
+        h.query_by_label_contains("Open glTF scene").is_some(),
+        "no dialog"
+    );
+    assert!(h.query_by_label("🗋 fig8b.glb").is_some());
+    assert!(h.query_by_label_contains(".md").is_none());
+    h.get_by_label("🗋 fig8b.glb").click();
+    h.run_steps(2);
+    h.get_by_role_and_label(Role::Button, "Open").click();
+    h.run_steps(2);
+    let path = asset("fig8b.glb");
+    step_until(&mut h, "fig8b from the dialog", |a| shows_file(a, &path));
+    assert!(
+        h.query_by_label_contains("Open glTF scene").is_none(),
+        "the dialog stayed"
+    );
+    assert_eq!(h.state().scene().unwrap().name, "fig8b");
+    assert_eq!(h.state().settings.recent[0], path.display().to_string());
+    // The render follows the new scene.
+    step_until(&mut h, "a frame of fig8b", |a| a.frame().is_some());
+}
+
+#[test]
+fn a_typed_path_opens_with_enter() {
+    let _serial = serial();
+    let mut h = harness_with("lampshade", |_| {});
+    let path = asset("fig8c.glb");
+    type_path(&mut h, &path.display().to_string());
+    step_until(&mut h, "fig8c from the path field", |a| {
+        shows_file(a, &path)
+    });
+    assert_eq!(h.state().message(), None);
+}
+
+#[test]
+fn a_broken_file_reports_its_error_and_keeps_the_scene() {
+    let _serial = serial();
+    let dir = temp_dir("broken");
+    let broken = dir.join("broken.glb");
+    std::fs::write(&broken, b"glTF not really").unwrap();
+    let mut h = harness_with("fig8a", |_| {});
+    type_path(&mut h, &broken.display().to_string());
+    step_until(&mut h, "the load to fail", |a| !a.is_busy());
+    let message = h.state().message().unwrap().to_owned();
+    assert!(message.contains(&broken.display().to_string()), "{message}");
+    // Shown in the side panel, and the scene on screen is still fig8a.
+    h.run_steps(2);
+    assert!(h.query_by_label_contains("broken.glb").is_some());
+    let scene = h.state().scene().unwrap();
+    assert_eq!(scene.name, "fig8a");
+    assert!(scene.source.is_none());
+    // A file that is not there is reported too.
+    let missing = dir.join("missing.gltf");
+    type_path(&mut h, &missing.display().to_string());
+    step_until(&mut h, "the missing file's error", |a| {
+        !a.is_busy() && a.message().is_some_and(|m| m.contains("missing.gltf"))
+    });
+    assert_eq!(h.state().scene().unwrap().name, "fig8a");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn save_as_glb_goes_through_the_dialog() {
+    let _serial = serial();
+    let dir = temp_dir("save-as");
+    let target = dir.join("moved.glb");
+    let mut h = harness_with("fig8b", |_| {});
+    let app = h.state_mut();
+    let mut pose = app.editor.pose(0).unwrap();
+    app.editor.checkpoint();
+    pose.center += Vec3::new(0.1, 0.0, 0.0);
+    app.editor.set_pose(0, pose);
+    app.apply_portal_edit();
+    let edited = app.editor.portals[0].world_triangles();
+    h.get_by_label("File").click();
+    h.run_steps(2);
+    h.get_by_label("Save as .glb…").click();
+    h.run_steps(3);
+    // The dialog proposes the scene's name; type a full path instead, and save.
+    h.query_all_by(|n| n.role() == Role::TextInput && n.value().as_deref() == Some("fig8b.glb"))
+        .next()
+        .expect("the dialog's file name field")
+        .set_text_value_accesskit(&target.display().to_string());
+    h.run_steps(2);
+    h.get_by_role_and_label(Role::Button, "Save").click();
+    h.run_steps(2);
+    step_until(&mut h, "saved as", |a| shows_file(a, &target));
+    assert!(!h.state().editor.dirty);
+    let saved = Scene::load(&target).unwrap();
+    for (a, b) in saved.desc.portals[0]
+        .world_triangles()
+        .iter()
+        .flatten()
+        .zip(edited.iter().flatten())
+    {
+        assert!(a.abs_diff_eq(*b, 1e-4), "{a} vs {b}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
