@@ -1,5 +1,6 @@
 //! Opening and saving files in the viewer as a user does, driven by egui_kittest with software
-//! Vulkan: File → Open glTF… shows the in-app file dialog and the chosen file loads; a path
+//! Vulkan: File → Open glTF… shows the in-app file dialog and the chosen file loads; the dialog
+//! lists folders and glTF files only, and Cancel leaves everything as it was; a path
 //! typed into the menu bar's field opens with Enter; a broken file's error names it in the
 //! side panel while the current scene stays; File → Save as .glb… saves through the dialog.
 
@@ -78,6 +79,35 @@ fn the_open_dialog_loads_the_chosen_file() {
     assert_eq!(h.state().settings.recent[0], path.display().to_string());
     // The render follows the new scene.
     step_until(&mut h, "a frame of fig8b", |a| a.frame().is_some());
+}
+
+#[test]
+fn the_dialog_lists_folders_and_gltf_files_only_and_cancels() {
+    let _serial = serial();
+    let dir = temp_dir("listing");
+    for name in ["a.glb", "b.GLTF", "notes.txt", "image.exr"] {
+        std::fs::write(dir.join(name), b"").unwrap();
+    }
+    std::fs::create_dir(dir.join("sub")).unwrap();
+    let recent = dir.join("a.glb").display().to_string();
+    let mut h = harness_with("fig8a", move |app| app.settings.recent = vec![recent]);
+    h.get_by_role_and_label(Role::Button, "Browse…").click();
+    h.run_steps(3);
+    for shown in ["🗋 a.glb", "🗋 b.GLTF", "🗀 sub"] {
+        assert!(h.query_by_label(shown).is_some(), "{shown} not listed");
+    }
+    for hidden in ["notes.txt", "image.exr"] {
+        assert!(
+            h.query_by_label_contains(hidden).is_none(),
+            "{hidden} listed"
+        );
+    }
+    h.get_by_role_and_label(Role::Button, "Cancel").click();
+    h.run_steps(2);
+    assert!(h.query_by_label_contains("Open glTF scene").is_none());
+    assert!(!h.state().is_busy());
+    assert_eq!(h.state().scene().unwrap().name, "fig8a");
+    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]

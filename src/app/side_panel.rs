@@ -16,14 +16,7 @@ impl PortalViewApp {
             .default_size(330.0)
             .show(ui, |ui| {
                 egui::ScrollArea::vertical().show(ui, |ui| {
-                    if let Some(m) = self.message.clone() {
-                        ui.horizontal(|ui| {
-                            ui.colored_label(Color32::LIGHT_RED, m);
-                            if ui.small_button("x").clicked() {
-                                self.message = None;
-                            }
-                        });
-                    }
+                    notice(ui, &mut self.message);
                     egui::CollapsingHeader::new("Render")
                         .default_open(true)
                         .show(ui, |ui| self.render_controls(ui, commands));
@@ -240,5 +233,21 @@ impl PortalViewApp {
                 ui.label("paused");
             }
         });
+    }
+}
+
+/// An error or notice at the top of a side panel, wrapped to the panel's width, with a button
+/// that dismisses it.
+pub(super) fn notice(ui: &mut egui::Ui, message: &mut Option<String>) {
+    let Some(text) = message.as_deref() else {
+        return;
+    };
+    let mut dismissed = false;
+    ui.horizontal(|ui| {
+        dismissed = ui.small_button("x").on_hover_text("Dismiss").clicked();
+        ui.add(egui::Label::new(egui::RichText::new(text).color(Color32::LIGHT_RED)).wrap());
+    });
+    if dismissed {
+        *message = None;
     }
 }

@@ -18,6 +18,7 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use super::files::FilePicker;
+use super::side_panel::notice;
 use crate::compare::report::strategy_rgb;
 use crate::compare::worker::{
     CompareFrame, CompareHandle, CompareRequest, ReferenceSource, ReferenceStatus,
@@ -319,16 +320,8 @@ impl CompareView {
             .default_size(330.0)
             .show(ui, |ui| {
                 egui::ScrollArea::vertical().show(ui, |ui| {
-                    for m in [&mut *message, &mut self.message] {
-                        if let Some(text) = m.clone() {
-                            ui.horizontal(|ui| {
-                                ui.colored_label(Color32::LIGHT_RED, text);
-                                if ui.small_button("x").clicked() {
-                                    *m = None;
-                                }
-                            });
-                        }
-                    }
+                    notice(ui, message);
+                    notice(ui, &mut self.message);
                     egui::CollapsingHeader::new("Comparison")
                         .default_open(true)
                         .show(ui, |ui| self.controls(ui, settings, exposure));
