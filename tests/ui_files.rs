@@ -2,7 +2,8 @@
 //! Vulkan: File → Open glTF… shows the in-app file dialog and the chosen file loads; the dialog
 //! lists folders and glTF files only, and Cancel leaves everything as it was; a path
 //! typed into the menu bar's field opens with Enter; a broken file's error names it in the
-//! side panel while the current scene stays; File → Save as .glb… saves through the dialog.
+//! side panel while the current scene stays, and a first scene that fails leaves the lampshade
+//! with its error; File → Save as .glb… saves through the dialog.
 
 use egui::accesskit::Role;
 use egui_kittest::Harness;
@@ -185,5 +186,20 @@ fn save_as_glb_goes_through_the_dialog() {
     {
         assert!(a.abs_diff_eq(*b, 1e-4), "{a} vs {b}");
     }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn a_first_scene_that_fails_falls_back_to_the_lampshade_with_its_error() {
+    let _serial = serial();
+    let dir = temp_dir("first");
+    let broken = dir.join("first.gltf");
+    std::fs::write(&broken, b"{ not json").unwrap();
+    let mut h = harness_with(&broken.display().to_string(), |_| {});
+    assert_eq!(h.state().scene().unwrap().name, "lampshade");
+    let message = h.state().message().unwrap().to_owned();
+    assert!(message.contains(&broken.display().to_string()), "{message}");
+    h.run_steps(2);
+    assert!(h.query_by_label_contains("first.gltf").is_some());
     let _ = std::fs::remove_dir_all(&dir);
 }
