@@ -237,6 +237,11 @@ impl AntishadowPlanes {
         &self.light_behind
     }
 
+    /// The diameter of portal and light together, which every tolerance is relative to.
+    pub fn scale(&self) -> f32 {
+        self.scale
+    }
+
     /// Positive in front of the portal.
     pub fn portal_plane(&self) -> Plane {
         self.portal_plane

@@ -258,7 +258,23 @@ impl ConvexPolygon {
     /// A uniformly distributed point on the polygon (pdf `1 / area`): a fan triangle by area
     /// from the precomputed table, `u.x` reused inside it.
     pub fn sample_uniform(&self, u: Vec2) -> Vec3 {
+        let (i, b) = self.pick_fan_point(u);
         let v = &self.vertices;
+        b.x * v[0] + b.y * v[i + 1] + (1.0 - b.x - b.y) * v[i + 2]
+    }
+
+    /// The same point as [`Self::sample_uniform`] less `origin`, formed from `v_0 − origin` and
+    /// edge vectors: each is rounded relative to its own length, so the offset is good to a few
+    /// ulps of its length even when the polygon and `origin` are far from the world origin
+    /// (where an absolute point is only good to an ulp of its coordinates).
+    pub fn sample_uniform_offset(&self, origin: Vec3, u: Vec2) -> Vec3 {
+        let (i, b) = self.pick_fan_point(u);
+        let v = &self.vertices;
+        (v[0] - origin) + b.y * (v[i + 1] - v[0]) + (1.0 - b.x - b.y) * (v[i + 2] - v[0])
+    }
+
+    /// The fan triangle `(v_0, v_{i+1}, v_{i+2})` for `u.x` and barycentrics in it.
+    fn pick_fan_point(&self, u: Vec2) -> (usize, Vec2) {
         let total = self.fan_cdf.last().copied().unwrap_or(0.0);
         let target = u.x * total;
         let i = self
@@ -272,8 +288,7 @@ impl ConvexPolygon {
         } else {
             0.5
         };
-        let b = super::sample_uniform_triangle(Vec2::new(ux, u.y));
-        b.x * v[0] + b.y * v[i + 1] + (1.0 - b.x - b.y) * v[i + 2]
+        (i, super::sample_uniform_triangle(Vec2::new(ux, u.y)))
     }
 
     /// Where the ray `o + t·dir` (any side) hits the polygon, if at `t > 0`.
@@ -425,6 +440,24 @@ pub fn clip_convex(subject: &[Vec3], clip: &ConvexPolygon) -> Verts {
     }
     let [first, second] = buffers;
     if current == 0 { first } else { second }
+}
+
+/// Drops each vertex within `tol` of the previous one kept, and trailing ones within `tol` of
+/// the first: a clip repeats, a few ulps apart, a vertex that lies on a clipping plane, and the
+/// edge between the copies has a direction made by rounding. What is kept is a subsequence of
+/// the vertices, so a convex polygon stays convex.
+pub fn merge_close(vertices: &mut Verts, tol: f32) {
+    let mut kept = 0;
+    for i in 0..vertices.len() {
+        if kept == 0 || vertices[kept - 1].distance(vertices[i]) > tol {
+            vertices[kept] = vertices[i];
+            kept += 1;
+        }
+    }
+    vertices.truncate(kept);
+    while vertices.len() > 1 && vertices[0].distance(vertices[vertices.len() - 1]) <= tol {
+        vertices.pop();
+    }
 }
 
 /// Andrew's monotone chain; counter-clockwise, without collinear points.
