@@ -194,6 +194,11 @@ impl PortalViewApp {
             ui.label("empty samples");
             ui.label(format!("{}", s.empty_samples));
             ui.end_row();
+            if s.nonfinite > 0 {
+                ui.label("non-finite samples (zeroed)");
+                ui.colored_label(ui.visuals().warn_fg_color, format!("{}", s.nonfinite));
+                ui.end_row();
+            }
             if let Some(l) = self.first_frame_latency {
                 ui.label("first frame after a change");
                 ui.label(format!("{:.0} ms", l.as_secs_f64() * 1e3));

@@ -160,4 +160,10 @@ fn print_summary(film: &Film, stats: &Stats, elapsed: Duration) {
         techniques.join(", "),
         stats.sampling_ns as f64 / stats.light_samples().max(1) as f64
     );
+    if stats.nonfinite > 0 {
+        println!(
+            "warning: {} non-finite radiance samples were replaced by zero",
+            stats.nonfinite
+        );
+    }
 }

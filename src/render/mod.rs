@@ -80,9 +80,7 @@ pub fn render_tile<T: Tracer>(
             let jitter = rng.uniform2();
             let (o, d) = rays.ray((Vec2::new(x as f32, y as f32) + jitter) / size);
             let l = integrator.radiance_traced(tracer, o, d, &mut rng, stats);
-            // A NaN or infinity would poison the mean forever; drop it loudly in tests.
-            debug_assert!(l.is_finite(), "non-finite radiance at pixel {x},{y}");
-            pixels.push(if l.is_finite() { l } else { Vec3::ZERO });
+            pixels.push(stats.finite_or_counted(l));
         }
     }
     pixels

@@ -1,6 +1,7 @@
 //! Counters the renderer keeps while it works: where shading points lie in the antishadow,
 //! which technique drew each light sample, and how many rays were traced.
 
+use glam::Vec3;
 use std::ops::AddAssign;
 
 use crate::light::Technique;
@@ -29,6 +30,9 @@ pub struct Stats {
     pub sampling_ns: u64,
     /// Samples per pixel accumulated in these counts.
     pub samples: u64,
+    /// Radiance samples that came out NaN or infinite and were replaced by zero: a symptom of
+    /// a bug (or of a scene beyond f32), shown wherever statistics are, never silently lost.
+    pub nonfinite: u64,
 }
 
 /// One shading point in this many is timed (timing each would cost more than sampling).
@@ -62,6 +66,17 @@ impl Stats {
     pub fn count_technique(&mut self, technique: Technique) {
         if let Some(i) = Technique::ALL.iter().position(|&t| t == technique) {
             self.techniques[i] += 1;
+        }
+    }
+
+    /// `l` if it is finite, else zero, counted in `nonfinite`: a NaN or infinity would poison
+    /// a pixel's mean for good.
+    pub fn finite_or_counted(&mut self, l: Vec3) -> Vec3 {
+        if l.is_finite() {
+            l
+        } else {
+            self.nonfinite += 1;
+            Vec3::ZERO
         }
     }
 
@@ -102,5 +117,29 @@ impl AddAssign for Stats {
         self.shadow_rays += o.shadow_rays;
         self.sampling_ns += o.sampling_ns;
         self.samples += o.samples;
+        self.nonfinite += o.nonfinite;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn non_finite_radiance_is_zeroed_and_counted() {
+        let mut stats = Stats::default();
+        assert_eq!(stats.finite_or_counted(Vec3::ONE), Vec3::ONE);
+        assert_eq!(stats.nonfinite, 0);
+        for bad in [f32::NAN, f32::INFINITY, f32::NEG_INFINITY] {
+            assert_eq!(
+                stats.finite_or_counted(Vec3::new(1.0, bad, 0.0)),
+                Vec3::ZERO
+            );
+        }
+        assert_eq!(stats.nonfinite, 3);
+        let mut total = Stats::default();
+        total += stats;
+        total += stats;
+        assert_eq!(total.nonfinite, 6);
     }
 }
