@@ -40,14 +40,6 @@ fn brute_force(tris: &[[Vec3; 3]], o: Vec3, d: Vec3) -> Option<(f32, usize)> {
     best.map(|(t, i)| (t as f32, i))
 }
 
-/// Makes material `index` a pure Lambertian (glTF materials carry a specular layer).
-fn lambertian(mut scene: Scene, index: usize, albedo: f32) -> Scene {
-    let mut geometry = std::sync::Arc::try_unwrap(scene.geometry).ok().unwrap();
-    geometry.materials[index] = Material::lambertian(Vec3::splat(albedo));
-    scene.geometry = std::sync::Arc::new(geometry);
-    scene
-}
-
 fn random_point(rng: &mut Rng, scale: f32) -> Vec3 {
     (Vec3::new(rng.uniform(), rng.uniform(), rng.uniform()) * 2.0 - 1.0) * scale
 }

@@ -4,6 +4,8 @@
 use glam::{Mat4, Vec3};
 use portalview::asset::desc::{MaterialDesc, PortalDesc, SceneDesc};
 use portalview::camera::Camera;
+use portalview::material::Material;
+use portalview::scene::Scene;
 
 pub use portalview::asset::builtin::flat_mesh as flat;
 
@@ -93,4 +95,156 @@ pub fn mean_and_se(values: &[f64]) -> (f64, f64) {
     let mean = values.iter().sum::<f64>() / n;
     let var = values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0);
     (mean, (var / n).sqrt())
+}
+
+/// Makes material `index` a pure Lambertian (glTF materials carry a specular layer).
+pub fn lambertian(mut scene: Scene, index: usize, albedo: f32) -> Scene {
+    let mut geometry = std::sync::Arc::try_unwrap(scene.geometry).ok().unwrap();
+    geometry.materials[index] = Material::lambertian(Vec3::splat(albedo));
+    scene.geometry = std::sync::Arc::new(geometry);
+    scene
+}
+
+/// Rectangles tiling the rectangle `[0, su] × [0, sv]` of the plane through `origin` spanned by
+/// the unit axes `u`, `v`, minus the disjoint rectangular `holes` `(u0, u1, v0, v1)`: the cells
+/// of the grid through every hole's sides, less those inside a hole. Wound around `u × v`.
+pub fn plate(
+    origin: Vec3,
+    (u, su): (Vec3, f32),
+    (v, sv): (Vec3, f32),
+    holes: &[(f32, f32, f32, f32)],
+) -> Vec<Vec<Vec3>> {
+    let mut us: Vec<f32> = [0.0, su].into_iter().collect();
+    let mut vs: Vec<f32> = [0.0, sv].into_iter().collect();
+    for &(u0, u1, v0, v1) in holes {
+        us.extend([u0, u1]);
+        vs.extend([v0, v1]);
+    }
+    us.sort_by(f32::total_cmp);
+    vs.sort_by(f32::total_cmp);
+    let mut rects = vec![];
+    for a in us.windows(2) {
+        for b in vs.windows(2) {
+            let (cu, cv) = (0.5 * (a[0] + a[1]), 0.5 * (b[0] + b[1]));
+            let in_hole = holes
+                .iter()
+                .any(|&(u0, u1, v0, v1)| (u0..u1).contains(&cu) && (v0..v1).contains(&cv));
+            if a[1] > a[0] && b[1] > b[0] && !in_hole {
+                let p = |s: f32, t: f32| origin + s * u + t * v;
+                rects.push(vec![
+                    p(a[0], b[0]),
+                    p(a[1], b[0]),
+                    p(a[1], b[1]),
+                    p(a[0], b[1]),
+                ]);
+            }
+        }
+    }
+    rects
+}
+
+/// A floor, a light of half-size 0.6 at height 2 facing down, and under it at height 1.5 an
+/// opaque plate with two windows side by side, each a portal of the light: points below see
+/// the light through both.
+pub fn two_windows() -> SceneDesc {
+    let light = square(Vec3::new(0.0, 2.0, 0.0), -Vec3::Y, 0.6);
+    let mut desc = floor_and_light(0.6, light, 20.0);
+    desc.materials
+        .push(MaterialDesc::diffuse("plate", Vec3::splat(0.3)));
+    let windows = [(2.5, 2.9, 2.8, 3.2), (3.1, 3.5, 2.8, 3.2)];
+    let origin = Vec3::new(-3.0, 1.5, -3.0);
+    desc.meshes.push(flat(
+        "plate",
+        2,
+        &plate(origin, (Vec3::X, 6.0), (Vec3::Z, 6.0), &windows),
+    ));
+    for (k, &(u0, u1, v0, v1)) in windows.iter().enumerate() {
+        let p = |s: f32, t: f32| origin + Vec3::new(s, 0.0, t);
+        let corners = [p(u0, v0), p(u1, v0), p(u1, v1), p(u0, v1)];
+        desc.portals
+            .push(portal(&format!("window{k}"), "light", 0.1, &corners));
+    }
+    desc.camera = camera(Vec3::new(0.0, 1.3, 2.8), Vec3::new(0.0, 0.0, -0.3));
+    desc
+}
+
+/// A light of half-size 0.4 at height 2 facing down, in a box (x, z in [-0.6, 0.6], y in
+/// [1, 2.05]) with an opening in its floor and one in its +x wall, a portal on each: points
+/// below and to the side see the light through both openings, at an angle to each other.
+pub fn box_with_two_openings() -> SceneDesc {
+    let light = square(Vec3::new(0.0, 2.0, 0.0), -Vec3::Y, 0.4);
+    let mut desc = floor_and_light(0.6, light, 20.0);
+    desc.materials
+        .push(MaterialDesc::diffuse("box", Vec3::splat(0.3)));
+    let (h, y0, y1) = (0.6, 1.0, 2.05);
+    let bottom_hole = (0.15, 1.05, 0.15, 1.05);
+    let side_hole = (0.1, 0.9, 0.3, 0.9);
+    let bottom_origin = Vec3::new(-h, y0, -h);
+    let side_origin = Vec3::new(h, y0, -h);
+    let mut faces = plate(
+        bottom_origin,
+        (Vec3::X, 2.0 * h),
+        (Vec3::Z, 2.0 * h),
+        &[bottom_hole],
+    );
+    faces.extend(plate(
+        side_origin,
+        (Vec3::Y, y1 - y0),
+        (Vec3::Z, 2.0 * h),
+        &[side_hole],
+    ));
+    let solid = [
+        (
+            Vec3::new(-h, y0, -h),
+            (Vec3::Y, y1 - y0),
+            (Vec3::Z, 2.0 * h),
+        ),
+        (
+            Vec3::new(-h, y0, -h),
+            (Vec3::X, 2.0 * h),
+            (Vec3::Y, y1 - y0),
+        ),
+        (Vec3::new(-h, y0, h), (Vec3::X, 2.0 * h), (Vec3::Y, y1 - y0)),
+        (
+            Vec3::new(-h, y1, -h),
+            (Vec3::X, 2.0 * h),
+            (Vec3::Z, 2.0 * h),
+        ),
+    ];
+    for (origin, u, v) in solid {
+        faces.extend(plate(origin, u, v, &[]));
+    }
+    desc.meshes.push(flat("box", 2, &faces));
+    let corners = |origin: Vec3, u: Vec3, v: Vec3, (u0, u1, v0, v1): (f32, f32, f32, f32)| {
+        let p = |s: f32, t: f32| origin + s * u + t * v;
+        [p(u0, v0), p(u1, v0), p(u1, v1), p(u0, v1)]
+    };
+    let bottom = corners(bottom_origin, Vec3::X, Vec3::Z, bottom_hole);
+    let side = corners(side_origin, Vec3::Y, Vec3::Z, side_hole);
+    desc.portals.push(portal("bottom", "light", 0.1, &bottom));
+    desc.portals.push(portal("side", "light", 0.1, &side));
+    desc.camera = camera(Vec3::new(2.6, 1.2, 2.2), Vec3::new(0.3, 0.4, 0.0));
+    desc
+}
+
+/// Two lights of different power, each with a portal, over a floor and nothing else: points
+/// see both, and the renderer picks one by power.
+pub fn two_lights() -> SceneDesc {
+    let first = square(Vec3::new(-0.8, 2.0, 0.0), -Vec3::Y, 0.4);
+    let mut desc = floor_and_light(0.6, first, 10.0);
+    desc.materials
+        .push(MaterialDesc::emitter("second", Vec3::splat(60.0), false));
+    let normal = Vec3::new(-0.3, -1.0, 0.1);
+    desc.meshes.push(flat(
+        "second",
+        2,
+        &[square(Vec3::new(0.9, 1.8, 0.3), normal, 0.25)],
+    ));
+    let first_portal = square(Vec3::new(-0.8, 1.6, 0.0), -Vec3::Y, 0.2);
+    let second_portal = square(Vec3::new(0.8, 1.4, 0.33), normal, 0.35);
+    desc.portals
+        .push(portal("first", "light", 0.1, &first_portal));
+    desc.portals
+        .push(portal("second", "second", 0.1, &second_portal));
+    desc
 }
