@@ -136,9 +136,9 @@ fn floor_radiance(scene: &Scene, strategy: Strategy, x: Vec3, n: usize, seed: u6
     let values: Vec<f64> = (0..n)
         .map(|i| {
             let mut rng = Rng::keyed(seed, &[i as u64]);
-            integrator
-                .radiance(eye, (x - eye).normalize(), &mut rng, &mut stats)
-                .x as f64
+            let l = integrator.radiance(eye, (x - eye).normalize(), &mut rng, &mut stats);
+            assert!(l.is_finite(), "non-finite radiance at {x}");
+            l.x as f64
         })
         .collect();
     mean_and_se(&values)
@@ -326,7 +326,8 @@ fn white_lambertian_furnace_returns_one() {
             ..Default::default()
         },
     );
-    let (film, _) = render(&integrator, 32, 32, 64);
+    let (film, stats) = render(&integrator, 32, 32, 64);
+    assert_eq!(stats.nonfinite, 0, "non-finite radiance samples");
     let mean = film.mean();
     let var = film.variance_of_mean();
     let n = mean.len() as f64;
