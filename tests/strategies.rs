@@ -1,8 +1,11 @@
-//! The portal method's strategies (METHOD.md, "Correctness checks every strategy must pass"):
-//! the mixture pdf integrates to the covered fraction, each technique's sampled density equals
-//! its evaluated density, samples pass a chi-square test against the pdf, every strategy's image
-//! agrees with light sampling (also with a misplaced portal, which alpha = 0 must break), and
-//! the plane classifier agrees with brute force on the built-in scenes. Run in release.
+//! The portal method's strategies (METHOD.md, "Correctness checks every strategy must pass"), at
+//! points in every region of every portal, with several portals on one light and several
+//! lights: the mixture pdf integrates to the covered fraction, each technique's sampled density
+//! equals its evaluated density, samples pass a chi-square test against the pdf, every
+//! strategy's image agrees with light sampling (also with a misplaced portal) and matches
+//! Lambert's irradiance, the light technique alone is biased at alpha = 0 where the portal does
+//! not cover the light, and the plane classifier agrees with brute force on the built-in scenes.
+//! Every check has a negative case. Run in release.
 
 mod common;
 
