@@ -1,5 +1,4 @@
-//! The antishadow classifier against brute force (METHOD.md: "Test it the same way in the
-//! project"): random convex portals and lights of 3 to 8 vertices, tilted lights and lights
+//! The antishadow classifier against brute force (`docs/method.md` §3.5): random convex portals and lights of 3 to 8 vertices, tilted lights and lights
 //! straddling the portal plane included, must agree everywhere except in a thin band around
 //! the planes. Negative cases show that the comparison would notice a wrong classifier.
 
@@ -251,7 +250,7 @@ fn planes_agree_with_brute_force_on_random_polygons() {
 
 /// The brute force written again, in f64 as the library's: project the light from `x` onto the
 /// portal plane, clip by the portal, compare areas. With `clip_light = false` it makes the
-/// mistake METHOD.md warns about and projects the whole light, also the part in front of the
+/// mistake `docs/method.md` warns about and projects the whole light, also the part in front of the
 /// portal plane.
 fn brute_force_again(
     portal: &ConvexPolygon,

@@ -87,7 +87,7 @@ fn portal_pdf_slack_stays_within_rounding() {
 
 /// Points `1e-7 · scale` to either side of every candidate antishadow plane of `portal`: planes
 /// through a portal edge and a light vertex, and through a light edge and a portal vertex
-/// (METHOD.md), at several places on each plane in front of the portal.
+/// (`docs/method.md` §3), at several places on each plane in front of the portal.
 fn points_off_planes(portal: &Portal) -> Vec<Vec3> {
     let p = portal.polygon.vertices();
     let l = portal.planes.light_behind_portal();

@@ -1,4 +1,4 @@
-//! The antishadow of a (portal, light) pair: which of the regions of METHOD.md a shading point
+//! The antishadow of a (portal, light) pair: which of the regions of `docs/method.md` (§2) a shading point
 //! `x` lies in, decided by precomputed planes through an edge of one polygon and a vertex of the
 //! other ([`AntishadowPlanes`]), and by an independent brute-force classifier that projects the
 //! light through the portal ([`classify_brute_force`]) to test it against.
@@ -113,7 +113,7 @@ pub struct VolumeEdge {
 }
 
 impl AntishadowPlanes {
-    /// Builds the planes of METHOD.md ("Classifying x with precomputed planes") for `portal`
+    /// Builds the planes of `docs/method.md` §3 for `portal`
     /// (normal = front, away from the light) and `light` (normal = emitting side, toward the
     /// portal).
     pub fn new(portal: &ConvexPolygon, light: &ConvexPolygon) -> Result<Self, AntishadowError> {
@@ -205,7 +205,7 @@ impl AntishadowPlanes {
         })
     }
 
-    /// The region of `x`, in the order of METHOD.md. Points on a plane count as outside the
+    /// The region of `x`, in the order of `docs/method.md` §3.3. Points on a plane count as outside the
     /// volume it bounds; a NaN `x` is [`Region::Behind`]. No allocation.
     pub fn classify(&self, x: Vec3) -> Region {
         let positive = |q: &Plane| q.signed_distance(x) > 0.0;
@@ -226,10 +226,6 @@ impl AntishadowPlanes {
         } else {
             Region::Antipenumbra
         }
-    }
-
-    pub fn portal(&self) -> &ConvexPolygon {
-        &self.portal
     }
 
     /// The light clipped to behind the portal plane (counter-clockwise around the light normal).
@@ -366,7 +362,7 @@ impl PlaneF64 {
 ///
 /// In the cross-section across the edge, with `u = normal × e` pointing into the polygon and
 /// `v = normal`, a candidate through `o` at angle θ (from `u` toward `v`) has the normal
-/// `e × (o − a) ∝ −sin θ·u + cos θ·v`, which is the orientation METHOD.md asks for, and `o'` is
+/// `e × (o − a) ∝ −sin θ·u + cos θ·v`, which is the orientation `docs/method.md` §3.2 asks for, and `o'` is
 /// on its positive side iff `sin(θ' − θ) > 0`. As all of `other` lies in one half-plane, the
 /// planes sought are the candidates of smallest and largest θ. Choosing by angle rather than by
 /// testing each candidate's sides also handles vertices on the polygon's own plane (a light

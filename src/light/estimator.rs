@@ -1,4 +1,4 @@
-//! The estimator for one light (METHOD.md, "The estimator for one light"): a single-sample
+//! The estimator for one light (`docs/method.md` §5): a single-sample
 //! mixture of light sampling (probability `alpha`) and one technique per portal, always
 //! weighted by the pdf of the whole mixture
 //!
@@ -15,11 +15,10 @@ use glam::{Vec2, Vec3};
 use super::antishadow::Region;
 use super::area::{AreaLight, LightPoint};
 use super::portal::Portal;
-use super::{Strategy, Technique};
+use super::{LightSet, Strategy, Technique};
 use crate::sampling::polygon::{Plane, Verts, clip_convex, merge_close};
 use crate::sampling::spherical::SphericalPolygon;
 use crate::sampling::{Distribution1D, cyclic_pairs};
-use crate::scene::Scene;
 
 /// The most portals one shading point can use for one light.
 pub const MAX_TERMS: usize = 8;
@@ -103,10 +102,10 @@ pub struct LightSampler {
 
 impl LightSampler {
     /// `alpha_override` replaces every portal's alpha (the CLI's `--alpha`, the viewer's slider).
-    pub fn new(scene: &Scene, strategy: Strategy, alpha_override: Option<f32>) -> Self {
-        let lights = &scene.geometry.lights;
+    pub fn new(scene: &impl LightSet, strategy: Strategy, alpha_override: Option<f32>) -> Self {
+        let lights = &scene.lights();
         let mut portals_of = vec![ArrayVec::new(); lights.len()];
-        for (i, p) in scene.portals.iter().enumerate() {
+        for (i, p) in scene.portals().iter().enumerate() {
             // Past MAX_TERMS portals on one light, the rest are ignored (counted in the UI).
             let _ = portals_of[p.light].try_push(i);
         }
@@ -115,7 +114,7 @@ impl LightSampler {
             .map(|ps| {
                 let authored = ps
                     .iter()
-                    .map(|&i| scene.portals[i].alpha)
+                    .map(|&i| scene.portals()[i].alpha)
                     .fold(0.0, f32::max);
                 alpha_override.unwrap_or(authored).clamp(0.0, 1.0)
             })
@@ -128,10 +127,6 @@ impl LightSampler {
         }
     }
 
-    pub fn strategy(&self) -> Strategy {
-        self.strategy
-    }
-
     /// Picks a light by power: its index and probability.
     pub fn pick_light(&self, u: f32) -> Option<(usize, f32)> {
         self.by_power.sample(u).map(|(i, p, _)| (i, p))
@@ -142,7 +137,7 @@ impl LightSampler {
     }
 
     /// Classifies `x` against the light's portals and fixes the mixture there.
-    pub fn context(&self, scene: &Scene, light: usize, x: Vec3) -> LightContext {
+    pub fn context(&self, scene: &impl LightSet, light: usize, x: Vec3) -> LightContext {
         let mut ctx = LightContext::new();
         self.fill_context(scene, light, x, &mut ctx);
         ctx
@@ -150,7 +145,13 @@ impl LightSampler {
 
     /// [`Self::context`] into a reused buffer: a context holds a spherical polygon per portal,
     /// too large to move around per shading point.
-    pub fn fill_context(&self, scene: &Scene, light: usize, x: Vec3, ctx: &mut LightContext) {
+    pub fn fill_context(
+        &self,
+        scene: &impl LightSet,
+        light: usize,
+        x: Vec3,
+        ctx: &mut LightContext,
+    ) {
         ctx.light = light;
         ctx.x = x;
         ctx.alpha = self.alpha_of[light];
@@ -165,7 +166,7 @@ impl LightSampler {
         // spherical polygon, so it is not moved around afterwards.
         let mut candidates: ArrayVec<(usize, Region, Technique), MAX_TERMS> = ArrayVec::new();
         for &j in &self.portals_of[light] {
-            let region = scene.portals[j].planes.classify(x);
+            let region = scene.portals()[j].planes.classify(x);
             if region == Region::Behind {
                 continue;
             }
@@ -197,7 +198,7 @@ impl LightSampler {
                 break;
             };
             if several || technique == Technique::Projection {
-                term.projection = projection(&scene.portals[j], x);
+                term.projection = projection(&scene.portals()[j], x);
             }
             if several {
                 term.weight = term.projection.as_ref().map_or(0.0, |q| q.solid_angle());
@@ -225,12 +226,12 @@ impl LightSampler {
     /// nothing with probability `1 − alpha`) or the draw degenerates; both contribute zero.
     pub fn sample(
         &self,
-        scene: &Scene,
+        scene: &impl LightSet,
         ctx: &LightContext,
         u_technique: f32,
         u: Vec2,
     ) -> Option<LightSample> {
-        let light = &scene.geometry.lights[ctx.light];
+        let light = &scene.lights()[ctx.light];
         let x = ctx.x;
         // Each route returns the direction, the light hit, and the technique's density as the
         // sampling procedure sees it (tests compare it with the evaluation in `pdf`).
@@ -258,7 +259,7 @@ impl LightSampler {
                 hit
             });
             let term = term.or(ctx.terms.last())?;
-            let portal = &scene.portals[term.portal];
+            let portal = &scene.portals()[term.portal];
             let sampled = match term.technique {
                 Technique::Light => from_light(light.sample_point(u)?)?,
                 Technique::Portal => {
@@ -293,12 +294,12 @@ impl LightSampler {
     /// one polygon (others are met by tracing).
     pub fn light_hit(
         &self,
-        scene: &Scene,
+        scene: &impl LightSet,
         light: usize,
         x: Vec3,
         wi: Vec3,
     ) -> Option<(LightPoint, f32)> {
-        let polygon = scene.geometry.lights[light].polygon.as_ref()?;
+        let polygon = scene.lights()[light].polygon.as_ref()?;
         let t = polygon.intersect(x, wi)?;
         Some((
             LightPoint {
@@ -312,7 +313,7 @@ impl LightSampler {
     /// The mixture pdf `q(wi)` for a direction whose light hit is `hit` (point and distance).
     pub fn pdf(
         &self,
-        scene: &Scene,
+        scene: &impl LightSet,
         ctx: &LightContext,
         wi: Vec3,
         hit: Option<(LightPoint, f32)>,
@@ -332,21 +333,21 @@ impl LightSampler {
     /// The light technique's pdf `p_L(wi)` for a direction whose light hit is `hit`.
     pub fn light_pdf(
         &self,
-        scene: &Scene,
+        scene: &impl LightSet,
         light: usize,
         wi: Vec3,
         hit: Option<(LightPoint, f32)>,
     ) -> f32 {
-        let light = &scene.geometry.lights[light];
+        let light = &scene.lights()[light];
         hit.map_or(0.0, |(y, d)| light.pdf_solid_angle(d, y.n.dot(wi)))
     }
 }
 
 /// `p_{s_j}(wi | x)`: one portal term's technique density (`p_light` is `p_L(wi)`).
-pub fn term_pdf(scene: &Scene, x: Vec3, term: &PortalTerm, p_light: f32, wi: Vec3) -> f32 {
+pub fn term_pdf(scene: &impl LightSet, x: Vec3, term: &PortalTerm, p_light: f32, wi: Vec3) -> f32 {
     match term.technique {
         Technique::Light => p_light,
-        Technique::Portal => portal_pdf(&scene.portals[term.portal], x, wi),
+        Technique::Portal => portal_pdf(&scene.portals()[term.portal], x, wi),
         Technique::Projection => term.projection.as_ref().map_or(0.0, |q| q.pdf(wi)),
     }
 }

@@ -1,4 +1,4 @@
-//! Lights, portals, the antishadow classifier and the sampling strategies (METHOD.md).
+//! Lights, portals, the antishadow classifier and the sampling strategies (`docs/method.md`).
 
 pub mod antishadow;
 pub mod area;
@@ -8,6 +8,15 @@ pub mod portal;
 use serde::{Deserialize, Serialize};
 
 use antishadow::Region;
+use area::AreaLight;
+use portal::Portal;
+
+/// A scene's lights and the portals onto them: all that light sampling reads. The scene
+/// implements it, so this layer never needs to know what a scene is.
+pub trait LightSet {
+    fn lights(&self) -> &[AreaLight];
+    fn portals(&self) -> &[Portal];
+}
 
 /// The four strategies of the method: a closed set.
 #[derive(
@@ -40,10 +49,6 @@ impl Strategy {
             Strategy::Projection => "projection",
             Strategy::Antishadow => "antishadow",
         }
-    }
-
-    pub fn from_name(name: &str) -> Option<Strategy> {
-        Strategy::ALL.into_iter().find(|s| s.name() == name)
     }
 
     /// The technique a portal term uses for a point in `region` (in front of the portal and

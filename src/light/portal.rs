@@ -1,7 +1,5 @@
 //! Portals: invisible convex polygons marking the opening through which a light is seen.
 
-use glam::Vec3;
-
 use super::antishadow::{AntishadowError, AntishadowPlanes};
 use super::area::AreaLight;
 use crate::asset::desc::PortalDesc;
@@ -125,9 +123,4 @@ fn orient(
         light
     };
     Some((portal, light))
-}
-
-/// Whether `x` is strictly in front of the portal's plane.
-pub fn in_front(portal: &ConvexPolygon, x: Vec3) -> bool {
-    portal.plane().signed_distance(x) > 0.0
 }

@@ -9,6 +9,7 @@ use std::sync::Arc;
 use crate::asset::desc::{PortalDesc, SceneDesc};
 use crate::asset::{builtin, gltf};
 use crate::camera::Camera;
+use crate::light::LightSet;
 use crate::light::area::AreaLight;
 use crate::light::portal::{Portal, PortalError};
 use crate::material::Material;
@@ -246,6 +247,16 @@ impl Scene {
             Some(p) => p.display().to_string(),
             None => self.name.clone(),
         }
+    }
+}
+
+impl LightSet for Scene {
+    fn lights(&self) -> &[AreaLight] {
+        &self.geometry.lights
+    }
+
+    fn portals(&self) -> &[Portal] {
+        &self.portals
     }
 }
 
