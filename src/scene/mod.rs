@@ -34,6 +34,16 @@ pub enum SceneError {
         node: String,
         index: u32,
     },
+    #[error(
+        "{file}: mesh node '{node}': vertex {index} at {position} is not within ±{MAX_COORDINATE:e} \
+         on every axis"
+    )]
+    FarVertex {
+        file: String,
+        node: String,
+        index: u32,
+        position: Vec3,
+    },
     #[error("unknown built-in scene '{0}' (built-ins: {names})", names = builtin::NAMES.join(", "))]
     UnknownBuiltin(String),
 }
@@ -49,6 +59,12 @@ pub struct SceneTriangle {
 }
 
 pub const NO_LIGHT: u32 = u32::MAX;
+
+/// The largest coordinate a vertex may have (NaN is refused too). The BVH build takes
+/// differences of box centres and multiplies surface areas by triangle counts in f32: with
+/// coordinates up to 10^12 these stay below 10^34, far from overflow, and the build cannot
+/// meet an infinite or NaN cost (which made it panic).
+pub const MAX_COORDINATE: f32 = 1e12;
 
 impl SceneTriangle {
     /// Position and interpolated shading normal at barycentrics (u on vertex 1, v on vertex 2).
@@ -120,7 +136,17 @@ impl Scene {
                 let fetch = |i: u32| {
                     let k = i as usize;
                     match (mesh.positions.get(k), mesh.normals.get(k)) {
-                        (Some(&p), Some(&n)) => Ok((p, n)),
+                        (Some(&p), Some(&n))
+                            if p.abs().cmple(Vec3::splat(MAX_COORDINATE)).all() =>
+                        {
+                            Ok((p, n))
+                        }
+                        (Some(&p), Some(_)) => Err(SceneError::FarVertex {
+                            file: file.to_owned(),
+                            node: mesh.node_name.clone(),
+                            index: i,
+                            position: p,
+                        }),
                         _ => Err(SceneError::BadIndex {
                             file: file.to_owned(),
                             node: mesh.node_name.clone(),

@@ -167,7 +167,21 @@ impl<'a> Doc<'a> {
                 false,
                 &at,
             )?),
-            None => None,
+            None => {
+                // Its elements are zeros (but for sparse substitutions): no more of them than
+                // the file's buffers hold bytes, so that a small file cannot ask for gigabytes.
+                let available: u64 = self.buffers.iter().map(|b| b.len() as u64).sum();
+                if (count as u64).saturating_mul(size as u64) > available {
+                    return Err(self.invalid(
+                        at,
+                        format!(
+                            "has no bufferView, and its {count} elements of {size} bytes exceed \
+                             the {available} bytes of the file's buffers"
+                        ),
+                    ));
+                }
+                None
+            }
         };
         let sparse = match &accessor.sparse {
             None => None,

@@ -1,6 +1,8 @@
 //! The file containers: a `.gltf`'s JSON or a `.glb`'s chunks, buffer URIs (relative paths
 //! and base64 data URIs), and writing a GLB.
 
+use std::io::Read;
+
 use super::*;
 
 /// A file's bytes, with where its JSON and (for a `.glb`) its BIN chunk are.
@@ -127,11 +129,15 @@ pub(super) fn split_glb(
     Ok((json, bin))
 }
 
+/// The bytes `uri` names, at most `limit` of them: a buffer needs no more than its
+/// `byteLength`, and a file is read only if it is a regular file (never a device or a pipe
+/// that might not end).
 pub(super) fn read_uri(
     file: &Path,
     base: &Path,
     at: &str,
     uri: &str,
+    limit: u64,
 ) -> Result<Vec<u8>, GltfError> {
     if let Some(rest) = uri.strip_prefix("data:") {
         let Some((_, payload)) = rest.split_once(";base64,") else {
@@ -161,11 +167,25 @@ pub(super) fn read_uri(
         ));
     };
     let target = base.join(&*relative);
-    fs::read(&target).map_err(|source| GltfError::Read {
+    let read_error = |source| GltfError::Read {
         file: file.to_owned(),
         what: format!("{at} from \"{}\"", target.display()),
         source,
-    })
+    };
+    let external = fs::File::open(&target).map_err(read_error)?;
+    if !external.metadata().map_err(read_error)?.is_file() {
+        return Err(invalid(
+            file,
+            at,
+            format!("\"{}\" is not a regular file", target.display()),
+        ));
+    }
+    let mut bytes = Vec::new();
+    external
+        .take(limit)
+        .read_to_end(&mut bytes)
+        .map_err(read_error)?;
+    Ok(bytes)
 }
 
 /// Whether `uri` starts with a scheme such as `http:` (two letters or more, so that a Windows

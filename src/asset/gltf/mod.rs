@@ -164,14 +164,17 @@ mod tests {
                 "data:application/octet-stream;base64,{}",
                 base64_encode(&data)
             );
-            assert_eq!(read_uri(file, base, "buffer 0", &uri).unwrap(), data);
+            assert_eq!(
+                read_uri(file, base, "buffer 0", &uri, u64::MAX).unwrap(),
+                data
+            );
         }
         let url_safe = "data:application/octet-stream;base64,-_-_";
         assert_eq!(
-            read_uri(file, base, "b", url_safe).unwrap(),
+            read_uri(file, base, "b", url_safe, u64::MAX).unwrap(),
             vec![0xfb, 0xff, 0xbf]
         );
-        let bad = read_uri(file, base, "buffer 3", "data:x;base64,TW*u").unwrap_err();
+        let bad = read_uri(file, base, "buffer 3", "data:x;base64,TW*u", u64::MAX).unwrap_err();
         assert!(bad.to_string().contains("x.gltf") && bad.to_string().contains("buffer 3"));
     }
 
@@ -182,10 +185,10 @@ mod tests {
         fs::write(dir.join("my scene.bin"), [1u8, 2]).unwrap();
         let file = dir.join("x.gltf");
         assert_eq!(
-            read_uri(&file, &dir, "b", "my%20scene.bin").unwrap(),
+            read_uri(&file, &dir, "b", "my%20scene.bin", u64::MAX).unwrap(),
             vec![1, 2]
         );
-        assert!(read_uri(&file, &dir, "b", "%FF").is_err());
+        assert!(read_uri(&file, &dir, "b", "%FF", u64::MAX).is_err());
         fs::remove_dir_all(&dir).unwrap();
         assert!(has_scheme("http://x/y.bin"));
         assert!(!has_scheme("scene.bin"));

@@ -13,8 +13,9 @@ pub(super) fn load_buffers<'b>(
     let mut buffers = Vec::with_capacity(root.buffers.len());
     for (i, buffer) in root.buffers.iter().enumerate() {
         let at = label("buffer", i, buffer.name.as_deref());
+        let declared = buffer.byte_length.0;
         let data = match (buffer.uri.as_deref(), bin) {
-            (Some(uri), _) => Cow::Owned(read_uri(file, base, &at, uri)?),
+            (Some(uri), _) => Cow::Owned(read_uri(file, base, &at, uri, declared)?),
             (None, Some(bin)) if i == 0 => Cow::Borrowed(bin),
             (None, _) if i == 0 => {
                 return Err(invalid(
@@ -31,7 +32,6 @@ pub(super) fn load_buffers<'b>(
                 ));
             }
         };
-        let declared = buffer.byte_length.0;
         if (data.len() as u64) < declared {
             return Err(invalid(
                 file,
