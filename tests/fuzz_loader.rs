@@ -25,9 +25,9 @@ use std::sync::mpsc;
 use std::thread;
 use std::time::{Duration, Instant};
 
+use portalview::asset::gltf::{GltfError, load_gltf};
 use portalview::sampling::Rng;
 use portalview::scene::Scene;
-use portalview::asset::gltf::{GltfError, load_gltf};
 use serde_json::Value;
 
 // ---------------------------------------------------------------------------------------------
