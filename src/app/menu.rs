@@ -96,7 +96,9 @@ impl PortalViewApp {
             .labelled_by(label.id);
         let entered = field.lost_focus() && ui.input(|i| i.key_pressed(egui::Key::Enter));
         let path = self.path_input.trim();
-        if (entered || ui.button("Open path").clicked()) && !path.is_empty() {
+        // Draw the button every frame, also the one on which Enter opens the path.
+        let clicked = ui.button("Open path").clicked();
+        if (entered || clicked) && !path.is_empty() {
             commands.push(Command::Open(path.to_owned()));
         }
         if ui
