@@ -121,29 +121,6 @@ fn bvh_handles_empty_scenes_and_rays_along_edges() {
     assert!(along.is_none_or(|h| h.t.is_finite() && h.t >= 0.0));
 }
 
-/// The radiance leaving a diffuse floor point, estimated by `n` camera-like rays that hit it.
-fn floor_radiance(scene: &Scene, strategy: Strategy, x: Vec3, n: usize, seed: u64) -> (f64, f64) {
-    let integrator = Integrator::new(
-        scene,
-        RenderSettings {
-            strategy,
-            seed,
-            ..RenderSettings::default()
-        },
-    );
-    let eye = x + Vec3::new(0.3, 1.0, 0.2);
-    let mut stats = Stats::default();
-    let values: Vec<f64> = (0..n)
-        .map(|i| {
-            let mut rng = Rng::keyed(seed, &[i as u64]);
-            let l = integrator.radiance(eye, (x - eye).normalize(), &mut rng, &mut stats);
-            assert!(l.is_finite(), "non-finite radiance at {x}");
-            l.x as f64
-        })
-        .collect();
-    mean_and_se(&values)
-}
-
 /// Lambert's formula against the renderer, for tilted lights wholly above the tangent plane.
 /// Tolerance: 4 standard errors of the estimator, the standard error from the sample variance.
 #[test]
@@ -162,7 +139,7 @@ fn diffuse_plane_matches_lambert_irradiance() {
         let x = Vec3::new(0.1, 0.0, -0.2);
         let expected = albedo as f64 / std::f64::consts::PI
             * lambert_irradiance(x, Vec3::Y, &light, le) as f64;
-        let (mean, se) = floor_radiance(&scene, Strategy::Light, x, 40_000, i as u64);
+        let (mean, se) = floor_radiance(&scene, (Strategy::Light, None), x, 40_000, i as u64);
         assert!(
             (mean - expected).abs() <= 4.0 * se,
             "config {i}: {mean} ± {se} vs Lambert {expected}"

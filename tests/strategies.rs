@@ -883,37 +883,6 @@ fn lambert_radiance(scene: &Scene, x: Vec3) -> f64 {
     0.6 / std::f64::consts::PI * irradiance
 }
 
-/// The radiance leaving floor point `x`, estimated by the full renderer (light sampling by
-/// `strategy`, MIS with BSDF sampling) from `n` camera-like rays that hit it.
-fn floor_radiance(
-    scene: &Scene,
-    (strategy, alpha): (Strategy, Option<f32>),
-    x: Vec3,
-    n: usize,
-    seed: u64,
-) -> (f64, f64) {
-    let integrator = Integrator::new(
-        scene,
-        RenderSettings {
-            strategy,
-            alpha,
-            seed,
-            ..RenderSettings::default()
-        },
-    );
-    let eye = x + Vec3::new(0.3, 1.0, 0.2);
-    let mut stats = Stats::default();
-    let values: Vec<f64> = (0..n)
-        .map(|i| {
-            let mut rng = Rng::keyed(seed, &[i as u64]);
-            let l = integrator.radiance(eye, (x - eye).normalize(), &mut rng, &mut stats);
-            assert!(l.is_finite(), "non-finite radiance at {x}");
-            l.x as f64
-        })
-        .collect();
-    common::mean_and_se(&values)
-}
-
 /// Every strategy matches Lambert's closed-form irradiance at floor points in every region of
 /// every portal (including points in front of two windows, and two lights picked by power with
 /// MIS across them). Tolerance: 4 standard errors of the estimator, from the sample variance.
@@ -927,7 +896,7 @@ fn every_strategy_matches_lambert_under_portals() {
             let expected = lambert_radiance(&scene, x);
             for (k, strategy) in Strategy::ALL.into_iter().enumerate() {
                 let seed = 1000 * seen.len() as u64 + k as u64;
-                let (mean, se) = floor_radiance(&scene, (strategy, None), x, 20_000, seed);
+                let (mean, se) = common::floor_radiance(&scene, (strategy, None), x, 20_000, seed);
                 assert!(
                     (mean - expected).abs() <= 4.0 * se,
                     "{name} {regions:?} at {x}, {}: {mean} ± {se} vs Lambert {expected}",
@@ -1026,7 +995,7 @@ fn light_technique_alone_is_biased_only_without_alpha() {
             "{} alpha 0: {mean} ± {se} vs Lambert {expected}: bias not detected",
             strategy.name()
         );
-        let (mean, se) = floor_radiance(scene, (strategy, Some(0.0)), floor, 100_000, 77);
+        let (mean, se) = common::floor_radiance(scene, (strategy, Some(0.0)), floor, 100_000, 77);
         let expected = lambert_radiance(scene, floor);
         assert!(
             (mean - expected).abs() <= 4.0 * se,

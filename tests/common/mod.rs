@@ -4,7 +4,11 @@
 use glam::{Mat4, Vec3};
 use portalview::asset::desc::{MaterialDesc, PortalDesc, SceneDesc};
 use portalview::camera::Camera;
+use portalview::light::Strategy;
 use portalview::material::Material;
+use portalview::render::integrator::{Integrator, RenderSettings};
+use portalview::render::stats::Stats;
+use portalview::sampling::Rng;
 use portalview::scene::Scene;
 
 pub use portalview::asset::builtin::flat_mesh as flat;
@@ -247,4 +251,35 @@ pub fn two_lights() -> SceneDesc {
     desc.portals
         .push(portal("second", "second", 0.1, &second_portal));
     desc
+}
+
+/// The radiance leaving floor point `x`, estimated by the full renderer (light sampling by
+/// `strategy`, MIS with BSDF sampling) from `n` camera-like rays that hit it.
+pub fn floor_radiance(
+    scene: &Scene,
+    (strategy, alpha): (Strategy, Option<f32>),
+    x: Vec3,
+    n: usize,
+    seed: u64,
+) -> (f64, f64) {
+    let integrator = Integrator::new(
+        scene,
+        RenderSettings {
+            strategy,
+            alpha,
+            seed,
+            ..RenderSettings::default()
+        },
+    );
+    let eye = x + Vec3::new(0.3, 1.0, 0.2);
+    let mut stats = Stats::default();
+    let values: Vec<f64> = (0..n)
+        .map(|i| {
+            let mut rng = Rng::keyed(seed, &[i as u64]);
+            let l = integrator.radiance(eye, (x - eye).normalize(), &mut rng, &mut stats);
+            assert!(l.is_finite(), "non-finite radiance at {x}");
+            l.x as f64
+        })
+        .collect();
+    mean_and_se(&values)
 }
