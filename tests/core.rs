@@ -289,6 +289,7 @@ fn white_lambertian_furnace_returns_one() {
             flat("sky", 1, &sphere(Vec3::ZERO, 10.0, true)),
         ],
         portals: vec![],
+        lamps: vec![],
         camera: camera(Vec3::new(0.0, 0.0, 4.0), Vec3::ZERO),
     };
     let mut scene = lambertian(Scene::from_desc(desc, "furnace").unwrap(), 0, 1.0);

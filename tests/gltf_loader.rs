@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 use glam::{Mat4, Quat, Vec3};
-use portalview::asset::desc::{MaterialDesc, MeshDesc, PortalDesc, SceneDesc};
+use portalview::asset::desc::{LampDesc, LampKind, MaterialDesc, MeshDesc, PortalDesc, SceneDesc};
 use portalview::asset::gltf::{export_glb, load_gltf, save_portals};
 use portalview::camera::Camera;
 use serde_json::{Value, json};
@@ -165,6 +165,12 @@ fn assert_scenes_close(a: &SceneDesc, b: &SceneDesc) {
     for (p, q) in a.portals.iter().zip(&b.portals) {
         assert_portal_close(p, q);
     }
+    assert_eq!(a.lamps.len(), b.lamps.len());
+    for (l, m) in a.lamps.iter().zip(&b.lamps) {
+        assert_eq!((&l.name, l.kind, l.range), (&m.name, m.kind, m.range));
+        assert!(close(l.color, m.color) && (l.intensity - m.intensity).abs() < EPS);
+        assert!(close(l.position, m.position) && close(l.direction, m.direction));
+    }
     match (&a.camera, &b.camera) {
         (None, None) => {}
         (Some(c), Some(d)) => {
@@ -237,6 +243,38 @@ fn sample_scene() -> SceneDesc {
             ),
             node_index: None,
         }],
+        lamps: vec![
+            LampDesc {
+                name: "bulb".to_owned(),
+                kind: LampKind::Point,
+                color: Vec3::new(1.0, 0.9, 0.7),
+                intensity: 5435.2,
+                range: None,
+                position: Vec3::new(0.5, 1.5, -0.5),
+                direction: Vec3::NEG_Z,
+            },
+            LampDesc {
+                name: "spot".to_owned(),
+                kind: LampKind::Spot {
+                    inner_cone: 0.3,
+                    outer_cone: 0.6,
+                },
+                color: Vec3::ONE,
+                intensity: 800.0,
+                range: Some(7.5),
+                position: Vec3::new(-1.0, 2.5, 0.0),
+                direction: Vec3::new(0.3, -1.0, 0.2).normalize(),
+            },
+            LampDesc {
+                name: "sun".to_owned(),
+                kind: LampKind::Directional,
+                color: Vec3::new(1.0, 0.95, 0.9),
+                intensity: 2049.0,
+                range: None,
+                position: Vec3::ZERO,
+                direction: Vec3::new(-0.2, -1.0, -0.4).normalize(),
+            },
+        ],
         camera: Some(Camera {
             eye: Vec3::new(0.0, 1.0, 5.0),
             target: Vec3::new(0.0, 1.0, 0.0),
@@ -269,6 +307,7 @@ fn export_then_load_round_trips() {
         doc.extensions_used()
             .any(|e| e == "KHR_materials_emissive_strength")
     );
+    assert!(doc.extensions_used().any(|e| e == "KHR_lights_punctual"));
     // Exporting what was loaded gives the same scene again.
     let again = dir.join("again.glb");
     export_glb(&loaded, &again).unwrap();

@@ -111,6 +111,38 @@ impl PortalDesc {
     }
 }
 
+/// The kind of a `KHR_lights_punctual` lamp.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum LampKind {
+    /// Emits equally in every direction from its position.
+    Point,
+    /// A point lamp limited to a cone around its direction: full intensity within
+    /// `inner_cone` radians of the axis, none beyond `outer_cone`, the extension's smooth
+    /// falloff between (`0 <= inner_cone <= outer_cone <= π/2`).
+    Spot { inner_cone: f32, outer_cone: f32 },
+    /// Parallel light arriving from infinitely far along `direction`.
+    Directional,
+}
+
+/// A `KHR_lights_punctual` lamp as authored, in the extension's photometric units (what the
+/// file holds; the renderer converts at 683 lm/W, see `light::punctual`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct LampDesc {
+    /// The name of its node (errors and portal targets name it).
+    pub name: String,
+    pub kind: LampKind,
+    /// Linear RGB `color` (white when absent).
+    pub color: Vec3,
+    /// `intensity`: candela for point and spot lamps, lux for directional ones.
+    pub intensity: f32,
+    /// `range`: beyond it a point or spot lamp gives no light (`None`: unlimited).
+    pub range: Option<f32>,
+    /// World position of its node (unused by directional lamps).
+    pub position: Vec3,
+    /// Unit world direction the lamp points to: its node's local −Z.
+    pub direction: Vec3,
+}
+
 /// A whole scene as authored.
 #[derive(Clone, Debug, PartialEq, Default)]
 pub struct SceneDesc {
@@ -118,6 +150,8 @@ pub struct SceneDesc {
     pub materials: Vec<MaterialDesc>,
     pub meshes: Vec<MeshDesc>,
     pub portals: Vec<PortalDesc>,
+    /// `KHR_lights_punctual` lamps.
+    pub lamps: Vec<LampDesc>,
     /// The file's first camera, if any (else one is made to frame the scene).
     pub camera: Option<Camera>,
 }

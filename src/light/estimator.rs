@@ -15,6 +15,7 @@ use glam::{Vec2, Vec3};
 use super::antishadow::Region;
 use super::area::{AreaLight, LightPoint};
 use super::portal::Portal;
+use super::punctual::Lamp;
 use super::{LightSet, Strategy, Technique};
 use crate::sampling::polygon::{Plane, Verts, clip_convex, merge_close};
 use crate::sampling::spherical::SphericalPolygon;
@@ -89,11 +90,21 @@ pub struct LightSample {
     pub technique_pdf: f32,
 }
 
+/// What [`LightSampler::pick`] chose: an area light or a lamp, by index in its own list.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PickedLight {
+    Area(usize),
+    Lamp(usize),
+}
+
 /// Samples lights for a scene under one strategy.
 #[derive(Clone, Debug)]
 pub struct LightSampler {
     strategy: Strategy,
+    /// Area lights, then lamps, by power.
     by_power: Distribution1D,
+    /// How many area lights come first in `by_power`.
+    area_lights: usize,
     /// Portal indices of each light.
     portals_of: Vec<ArrayVec<usize, MAX_TERMS>>,
     /// Alpha of each light.
@@ -121,19 +132,45 @@ impl LightSampler {
             .collect();
         LightSampler {
             strategy,
-            by_power: Distribution1D::new(lights.iter().map(AreaLight::power)),
+            by_power: Distribution1D::new(
+                lights
+                    .iter()
+                    .map(AreaLight::power)
+                    .chain(scene.lamps().iter().map(Lamp::power)),
+            ),
+            area_lights: lights.len(),
             portals_of,
             alpha_of,
         }
     }
 
-    /// Picks a light by power: its index and probability.
-    pub fn pick_light(&self, u: f32) -> Option<(usize, f32)> {
-        self.by_power.sample(u).map(|(i, p, _)| (i, p))
+    /// Picks an area light or a lamp by power: which, and its probability.
+    pub fn pick(&self, u: f32) -> Option<(PickedLight, f32)> {
+        let (i, p, _) = self.by_power.sample(u)?;
+        let picked = match i.checked_sub(self.area_lights) {
+            None => PickedLight::Area(i),
+            Some(k) => PickedLight::Lamp(k),
+        };
+        Some((picked, p))
     }
 
+    /// Picks a light by power: the area light's index and probability, `None` when a lamp
+    /// is picked or there is nothing to pick (for scenes without lamps, where it is [`Self::pick`]).
+    pub fn pick_light(&self, u: f32) -> Option<(usize, f32)> {
+        match self.pick(u)? {
+            (PickedLight::Area(i), p) => Some((i, p)),
+            (PickedLight::Lamp(_), _) => None,
+        }
+    }
+
+    /// The probability of picking area light `light`.
     pub fn light_probability(&self, light: usize) -> f32 {
         self.by_power.pmf(light)
+    }
+
+    /// The probability of picking lamp `lamp`.
+    pub fn lamp_probability(&self, lamp: usize) -> f32 {
+        self.by_power.pmf(self.area_lights + lamp)
     }
 
     /// Classifies `x` against the light's portals and fixes the mixture there.

@@ -4,18 +4,24 @@ pub mod antishadow;
 pub mod area;
 pub mod estimator;
 pub mod portal;
+pub mod punctual;
 
 use serde::{Deserialize, Serialize};
 
 use antishadow::Region;
 use area::AreaLight;
 use portal::Portal;
+use punctual::Lamp;
 
 /// A scene's lights and the portals onto them: all that light sampling reads. The scene
 /// implements it, so this layer never needs to know what a scene is.
 pub trait LightSet {
     fn lights(&self) -> &[AreaLight];
     fn portals(&self) -> &[Portal];
+    /// Punctual lamps, picked with the area lights by power (none by default).
+    fn lamps(&self) -> &[Lamp] {
+        &[]
+    }
 }
 
 /// The four strategies of the method: a closed set.

@@ -11,6 +11,12 @@ pub enum PortalError {
     #[error("portal node '{portal}': portal_target '{target}' names no emissive mesh node")]
     TargetMissing { portal: String, target: String },
     #[error(
+        "portal node '{portal}': portal_target '{target}' is a KHR_lights_punctual lamp; a \
+         portal may only target an emissive mesh that is one planar convex polygon (a lamp is \
+         sampled exactly already, in one direction)"
+    )]
+    TargetIsLamp { portal: String, target: String },
+    #[error(
         "portal node '{portal}': its light '{target}' is not one planar convex polygon \
          (a portal may only target such a light)"
     )]

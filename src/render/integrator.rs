@@ -5,9 +5,9 @@ use glam::Vec3;
 use std::time::Instant;
 
 use super::stats::{Stats, TIMING_STRIDE, timer_overhead};
-use crate::light::Strategy;
+use crate::light::{Strategy, Technique};
 use crate::light::area::LightPoint;
-use crate::light::estimator::{LightContext, LightSample, LightSampler};
+use crate::light::estimator::{LightContext, LightSample, LightSampler, PickedLight};
 use crate::material::Material;
 use crate::sampling::{Frame, Rng, power_heuristic};
 use crate::scene::bvh::Tracer;
@@ -44,6 +44,15 @@ struct Shading<'m> {
     frame: Frame,
     wo_local: Vec3,
     material: &'m Material,
+}
+
+/// Next-event estimation's result at one shading point.
+#[derive(Clone, Copy)]
+struct Direct {
+    /// The MIS-weighted contribution.
+    l: Vec3,
+    /// Whether an area light was picked and its context filled (reusable for MIS).
+    context_filled: bool,
 }
 
 /// The previous vertex, for weighting emission that BSDF sampling finds.
@@ -175,8 +184,8 @@ impl<'a> Integrator<'a> {
                 stats,
                 &mut contexts[depth as usize % 2],
             );
-            let picked = direct.is_some();
-            l += beta * direct.unwrap_or(Vec3::ZERO);
+            let picked = direct.is_some_and(|d| d.context_filled);
+            l += beta * direct.map_or(Vec3::ZERO, |d| d.l);
 
             // BSDF sampling: the next ray, and MIS for the light it may hit.
             let (u_lobe, u) = (rng.uniform(), rng.uniform2());
@@ -291,8 +300,8 @@ impl<'a> Integrator<'a> {
     }
 
     /// Picks a light, draws one sample from the strategy's mixture and traces its shadow ray:
-    /// the MIS-weighted contribution, or `None` when no light was picked. Leaves the light's
-    /// context in `ctx` for later MIS.
+    /// the MIS-weighted contribution, or `None` when no light was picked. Leaves an area
+    /// light's context in `ctx` for later MIS (a lamp's sample leaves it untouched).
     fn sample_direct<T: Tracer>(
         &self,
         tracer: &T,
@@ -300,11 +309,22 @@ impl<'a> Integrator<'a> {
         rng: &mut Rng,
         stats: &mut Stats,
         ctx: &mut LightContext,
-    ) -> Option<Vec3> {
+    ) -> Option<Direct> {
         let u_pick = rng.uniform();
         let u_technique = rng.uniform();
         let u = rng.uniform2();
-        let (light, light_prob) = self.lights.pick_light(u_pick)?;
+        let (light, light_prob) = match self.lights.pick(u_pick)? {
+            (PickedLight::Area(light), p) => (light, p),
+            (PickedLight::Lamp(lamp), p) => {
+                // `ctx` is left as it was: the caller must not reuse it for MIS.
+                stats.no_portal += 1;
+                stats.count_technique(Technique::Light);
+                return Some(Direct {
+                    l: self.lamp_direct(tracer, lamp, p, s, stats),
+                    context_filled: false,
+                });
+            }
+        };
         let timed = stats.shading_points().is_multiple_of(TIMING_STRIDE);
         let start = timed.then(Instant::now);
         self.lights.fill_context(self.scene, light, s.x, ctx);
@@ -318,16 +338,55 @@ impl<'a> Integrator<'a> {
         } else {
             stats.no_portal += 1;
         }
-        match &sample {
+        let l = match &sample {
             Some(sample) => {
                 stats.count_technique(sample.technique);
-                Some(self.direct(tracer, sample, light_prob, s, stats))
+                self.direct(tracer, sample, light_prob, s, stats)
             }
             None => {
                 stats.empty_samples += 1;
-                Some(Vec3::ZERO)
+                Vec3::ZERO
             }
+        };
+        Some(Direct {
+            l,
+            context_filled: true,
+        })
+    }
+
+    /// A lamp's contribution, `f · E · cos θ / P(lamp)` with `E` its irradiance at normal
+    /// incidence. A lamp is a delta light: BSDF sampling never finds it, so its sample's MIS
+    /// weight is 1.
+    fn lamp_direct<T: Tracer>(
+        &self,
+        tracer: &T,
+        lamp: usize,
+        lamp_prob: f32,
+        s: &Shading,
+        stats: &mut Stats,
+    ) -> Vec3 {
+        let Some(sample) = self.scene.geometry.lamps[lamp].sample(s.x) else {
+            return Vec3::ZERO;
+        };
+        if lamp_prob <= 0.0 || sample.wi.dot(s.ng) <= 0.0 {
+            return Vec3::ZERO;
         }
+        let wi_local = s.frame.to_local(sample.wi);
+        let f = s.material.eval_pdf(s.wo_local, wi_local).0;
+        if f == Vec3::ZERO || wi_local.z <= 0.0 {
+            return Vec3::ZERO;
+        }
+        stats.shadow_rays += 1;
+        // To the lamp's position (nothing stands at a point light), or to infinity.
+        let tmax = if sample.dist.is_finite() {
+            sample.dist * (1.0 - 1e-4)
+        } else {
+            f32::INFINITY
+        };
+        if tracer.occluded(s.x, sample.wi, 0.0, tmax) {
+            return Vec3::ZERO;
+        }
+        f * sample.irradiance * wi_local.z / lamp_prob
     }
 
     /// A light sample's contribution, weighted against BSDF sampling by the power heuristic.

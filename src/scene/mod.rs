@@ -6,12 +6,13 @@ use glam::{Vec2, Vec3};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use crate::asset::desc::{PortalDesc, SceneDesc};
+use crate::asset::desc::{LampKind, PortalDesc, SceneDesc};
 use crate::asset::{builtin, gltf};
 use crate::camera::Camera;
 use crate::light::LightSet;
 use crate::light::area::AreaLight;
 use crate::light::portal::{Portal, PortalError};
+use crate::light::punctual::Lamp;
 use crate::material::Material;
 use bvh::Bvh;
 
@@ -88,6 +89,8 @@ pub struct Geometry {
     pub triangles: Vec<SceneTriangle>,
     pub materials: Vec<Material>,
     pub lights: Vec<AreaLight>,
+    /// `KHR_lights_punctual` lamps: sampled with the lights, never hit by rays.
+    pub lamps: Vec<Lamp>,
     pub bvh: Bvh,
     pub bounds: (Vec3, Vec3),
 }
@@ -184,19 +187,29 @@ impl Scene {
         } else {
             bounds
         };
+        // A directional lamp's power is the light falling on the disc of the sphere that
+        // bounds the scene's triangles and its other lamps.
+        let (lo, hi) = desc
+            .lamps
+            .iter()
+            .filter(|l| l.kind != LampKind::Directional)
+            .fold(bounds, |(lo, hi), l| (lo.min(l.position), hi.max(l.position)));
+        let radius = 0.5 * (hi - lo).length();
+        let lamps = desc.lamps.iter().map(|l| Lamp::new(l, radius)).collect();
         let corners: Vec<[Vec3; 3]> = triangles.iter().map(|t| t.p).collect();
         let geometry = Arc::new(Geometry {
             bvh: Bvh::build(&corners),
             triangles,
             materials,
             lights,
+            lamps,
             bounds,
         });
         let camera = match desc.camera {
             Some(c) => c,
             None => Camera::framing(bounds.0, bounds.1, 4.0 / 3.0),
         };
-        let portals = validate_portals(&desc.portals, &geometry.lights, file)?;
+        let portals = validate_portals(&desc.portals, &geometry, file)?;
         Ok(Scene {
             name: desc.name.clone(),
             desc: Arc::new(desc),
@@ -229,7 +242,7 @@ impl Scene {
     /// The same geometry with other portals (an edit); the BVH is shared, not rebuilt.
     pub fn with_portals(&self, portals: Vec<PortalDesc>) -> Result<Scene, SceneError> {
         let file = self.file_label();
-        let validated = validate_portals(&portals, &self.geometry.lights, &file)?;
+        let validated = validate_portals(&portals, &self.geometry, &file)?;
         let desc = SceneDesc {
             portals,
             ..(*self.desc).clone()
@@ -250,7 +263,7 @@ impl Scene {
         let mut valid = Vec::new();
         let mut errors = Vec::new();
         for (i, d) in portals.iter().enumerate() {
-            match Portal::new(d, i, &self.geometry.lights) {
+            match portal(d, i, &self.geometry) {
                 Ok(p) => valid.push(p),
                 Err(e) => errors.push((i, e)),
             }
@@ -284,18 +297,34 @@ impl LightSet for Scene {
     fn portals(&self) -> &[Portal] {
         &self.portals
     }
+
+    fn lamps(&self) -> &[Lamp] {
+        &self.geometry.lamps
+    }
+}
+
+/// The portal of `desc`, the `i`-th of its scene; a portal naming a lamp is refused (a lamp
+/// is a point or a direction: there is no area for a portal to open onto).
+fn portal(desc: &PortalDesc, i: usize, geometry: &Geometry) -> Result<Portal, PortalError> {
+    if geometry.lamps.iter().any(|l| l.name == desc.target) {
+        return Err(PortalError::TargetIsLamp {
+            portal: desc.name.clone(),
+            target: desc.target.clone(),
+        });
+    }
+    Portal::new(desc, i, &geometry.lights)
 }
 
 fn validate_portals(
     descs: &[PortalDesc],
-    lights: &[AreaLight],
+    geometry: &Geometry,
     file: &str,
 ) -> Result<Vec<Portal>, SceneError> {
     descs
         .iter()
         .enumerate()
         .map(|(i, d)| {
-            Portal::new(d, i, lights).map_err(|error| SceneError::Portal {
+            portal(d, i, geometry).map_err(|error| SceneError::Portal {
                 file: file.to_owned(),
                 error,
             })

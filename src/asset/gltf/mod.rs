@@ -10,6 +10,7 @@
 
 mod accessor;
 mod container;
+mod lamps;
 mod read;
 mod save_portals;
 mod validate;
@@ -17,6 +18,7 @@ mod write;
 
 use accessor::*;
 use container::*;
+use lamps::*;
 use read::*;
 use save_portals::*;
 use validate::*;

@@ -265,6 +265,7 @@ impl<'a> Doc<'a> {
         let mut default_material = None;
         let mut meshes = Vec::new();
         let mut portals = Vec::new();
+        let mut lamps = Vec::new();
         let mut camera = None;
         let mut budget = Budget::default();
         for visit in visits {
@@ -273,6 +274,10 @@ impl<'a> Doc<'a> {
             };
             let at = node_label(visit.node, node);
             let extras = node_extras(self.file, node, &at)?;
+            if let Some(lamp) = node_lamp(self.file, self.root, visit.node, node, visit.world, &at)?
+            {
+                lamps.push(lamp);
+            }
             if let Some(portal) = portal_extras(self.file, extras.as_ref(), &at)? {
                 portals.push(self.portal(visit, node, &at, portal, &mut budget)?);
                 continue;
@@ -319,6 +324,7 @@ impl<'a> Doc<'a> {
             materials,
             meshes,
             portals,
+            lamps,
             camera,
         })
     }

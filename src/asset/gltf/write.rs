@@ -321,6 +321,7 @@ pub(super) fn export_document(
             ..Default::default()
         });
     }
+    export_lamps(file, &desc.lamps, &mut root, &mut nodes)?;
     if let Some(camera) = &desc.camera {
         let (world_from_camera, distance) = camera_transform(file, camera)?;
         let camera_index = json_index(file, root.cameras.len())?;
