@@ -608,8 +608,8 @@ fn save_portals_round_trip_glb() {
     assert_portal_close(added, &skylight);
     assert_eq!(
         added.node_index,
-        Some(5),
-        "appended after the 5 exported nodes"
+        Some(8),
+        "appended after the 8 exported nodes (2 meshes, 2 portals, 3 lamps, the camera)"
     );
     // Everything else reads back as before.
     let without_portals = |s: &SceneDesc| SceneDesc {
@@ -627,15 +627,15 @@ fn save_portals_round_trip_glb() {
             .into_owned()
     };
     assert_eq!(bin(&after_bytes), bin(&before_bytes));
-    for i in [0, 1, 4] {
+    for i in [0, 1, 4, 5, 6, 7] {
         assert_eq!(after["nodes"][i], before["nodes"][i], "node {i}");
     }
     assert_eq!(
         after["nodes"][3], before["nodes"][3],
         "the deleted door's node stays, detached"
     );
-    assert_eq!(after["scenes"][0]["nodes"], json!([0, 1, 2, 4, 5]));
-    for key in ["materials", "cameras", "extensionsUsed", "asset"] {
+    assert_eq!(after["scenes"][0]["nodes"], json!([0, 1, 2, 4, 5, 6, 7, 8]));
+    for key in ["materials", "cameras", "extensionsUsed", "extensions", "asset"] {
         assert_eq!(after[key], before[key], "{key}");
     }
     for key in ["accessors", "bufferViews", "meshes", "buffers"] {
