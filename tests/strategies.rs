@@ -20,7 +20,6 @@ use portalview::light::{Strategy, Technique};
 use portalview::render::film::Film;
 use portalview::render::integrator::{Integrator, RenderSettings};
 use portalview::render::render;
-use portalview::render::stats::Stats;
 use portalview::sampling::{Frame, Rng};
 use portalview::scene::Scene;
 
