@@ -635,7 +635,13 @@ fn save_portals_round_trip_glb() {
         "the deleted door's node stays, detached"
     );
     assert_eq!(after["scenes"][0]["nodes"], json!([0, 1, 2, 4, 5, 6, 7, 8]));
-    for key in ["materials", "cameras", "extensionsUsed", "extensions", "asset"] {
+    for key in [
+        "materials",
+        "cameras",
+        "extensionsUsed",
+        "extensions",
+        "asset",
+    ] {
         assert_eq!(after[key], before[key], "{key}");
     }
     for key in ["accessors", "bufferViews", "meshes", "buffers"] {

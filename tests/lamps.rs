@@ -55,7 +55,13 @@ fn floor_only() -> SceneDesc {
 }
 
 /// A white lamp of `watts_per_sr` W/sr (stored in candela, as files hold it).
-fn lamp(name: &str, kind: LampKind, watts_per_sr: f32, position: Vec3, direction: Vec3) -> LampDesc {
+fn lamp(
+    name: &str,
+    kind: LampKind,
+    watts_per_sr: f32,
+    position: Vec3,
+    direction: Vec3,
+) -> LampDesc {
     LampDesc {
         name: name.into(),
         kind,
@@ -104,8 +110,14 @@ fn point_lamp_irradiance_follows_the_inverse_square_law() {
     ] {
         let expected = inverse_square(i, p, x, 1.0) / f64::from(PI);
         let estimate = radiance(&scene, Strategy::Antishadow, x, 64);
-        assert!(estimate.1 < 1e-6, "a point lamp alone is deterministic: {estimate:?}");
-        assert!(agrees(estimate, expected), "{x}: {estimate:?} vs {expected}");
+        assert!(
+            estimate.1 < 1e-6,
+            "a point lamp alone is deterministic: {estimate:?}"
+        );
+        assert!(
+            agrees(estimate, expected),
+            "{x}: {estimate:?} vs {expected}"
+        );
         // Negative cases: candela taken as W/sr (the 1/683 missing), or no cos θ.
         assert!(!agrees(estimate, expected * 683.0));
         let without_cos = expected / f64::from((p - x).normalize().y);
@@ -122,13 +134,23 @@ fn point_lamp_range_applies_the_smooth_window() {
         ..lamp("bulb", LampKind::Point, i, p, Vec3::NEG_Z)
     });
     let scene = scene_of(desc);
-    for x in [Vec3::ZERO, Vec3::new(1.2, 0.0, 0.0), Vec3::new(1.5, 0.0, 0.5)] {
+    for x in [
+        Vec3::ZERO,
+        Vec3::new(1.2, 0.0, 0.0),
+        Vec3::new(1.5, 0.0, 0.5),
+    ] {
         let d = (p - Integrator::offset(x, Vec3::Y)).length();
         let window = (1.0 - (d / range).powi(4)).clamp(0.0, 1.0);
         let expected = inverse_square(i, p, x, window) / f64::from(PI);
         let estimate = radiance(&scene, Strategy::Antishadow, x, 16);
-        assert!(agrees(estimate, expected), "{x}: {estimate:?} vs {expected}");
-        assert!(!agrees(estimate, inverse_square(i, p, x, 1.0) / f64::from(PI)));
+        assert!(
+            agrees(estimate, expected),
+            "{x}: {estimate:?} vs {expected}"
+        );
+        assert!(!agrees(
+            estimate,
+            inverse_square(i, p, x, 1.0) / f64::from(PI)
+        ));
     }
     // Beyond the range: nothing.
     let far = radiance(&scene, Strategy::Antishadow, Vec3::new(3.0, 0.0, 0.0), 16);
@@ -163,7 +185,10 @@ fn spot_lamp_irradiance_follows_the_extensions_falloff() {
         let theta = (r / (2.0 - xs.y)).atan();
         let expected = inverse_square(i, p, x, falloff(theta)) / f64::from(PI);
         let estimate = radiance(&scene, Strategy::Antishadow, x, 16);
-        assert!(agrees(estimate, expected), "r {r}: {estimate:?} vs {expected}");
+        assert!(
+            agrees(estimate, expected),
+            "r {r}: {estimate:?} vs {expected}"
+        );
         // Negative case: without the falloff, points in the band disagree.
         let hard = inverse_square(i, p, x, if theta < outer { 1.0 } else { 0.0 });
         if theta > inner && theta < outer {
@@ -195,9 +220,16 @@ fn directional_lamp_gives_e_perp_times_cosine() {
     let scene = scene_of(desc);
     let cos = -direction.y;
     let expected = f64::from(e_perp * cos / PI);
-    for x in [Vec3::ZERO, Vec3::new(-3.0, 0.0, 2.0), Vec3::new(7.0, 0.0, -9.0)] {
+    for x in [
+        Vec3::ZERO,
+        Vec3::new(-3.0, 0.0, 2.0),
+        Vec3::new(7.0, 0.0, -9.0),
+    ] {
         let estimate = radiance(&scene, Strategy::Antishadow, x, 16);
-        assert!(agrees(estimate, expected), "{x}: {estimate:?} vs {expected}");
+        assert!(
+            agrees(estimate, expected),
+            "{x}: {estimate:?} vs {expected}"
+        );
         // Negative case: without cos θ.
         assert!(!agrees(estimate, f64::from(e_perp / PI)));
     }
@@ -239,10 +271,17 @@ fn point_lamp_inside_a_shade_lights_through_the_opening_only() {
     let scene = scene_of(lamp_in_shade(None));
     let p = Vec3::new(0.0, 1.5, 0.0);
     // Below the opening: the lamp's inverse-square light; beside the shade: its shadow.
-    for x in [Vec3::ZERO, Vec3::new(0.2, 0.0, -0.1), Vec3::new(-0.3, 0.0, 0.2)] {
+    for x in [
+        Vec3::ZERO,
+        Vec3::new(0.2, 0.0, -0.1),
+        Vec3::new(-0.3, 0.0, 0.2),
+    ] {
         let expected = inverse_square(5.0, p, x, 1.0) / f64::from(PI);
         let estimate = radiance(&scene, Strategy::Antishadow, x, 16);
-        assert!(agrees(estimate, expected), "{x}: {estimate:?} vs {expected}");
+        assert!(
+            agrees(estimate, expected),
+            "{x}: {estimate:?} vs {expected}"
+        );
     }
     for x in [Vec3::new(2.0, 0.0, 0.0), Vec3::new(0.0, 0.0, -3.0)] {
         assert_eq!(radiance(&scene, Strategy::Antishadow, x, 16).0, 0.0, "{x}");
@@ -322,7 +361,8 @@ fn lamps_and_area_lights_are_picked_by_power_and_strategies_agree() {
 
     for x in [Vec3::new(0.1, 0.0, 0.2), Vec3::new(1.2, 0.0, -0.6)] {
         let area = lambert_irradiance(x, Vec3::Y, &light, le);
-        let expected = f64::from((area + i * (p - x).normalize().y / (p - x).length_squared()) / PI);
+        let expected =
+            f64::from((area + i * (p - x).normalize().y / (p - x).length_squared()) / PI);
         let without = f64::from(area / PI);
         for strategy in Strategy::ALL {
             let estimate = radiance(&scene, strategy, x, 40_000);
@@ -393,8 +433,10 @@ fn blender_100_watt_point_lamp_gives_cycles_radiance() {
     let s = std::f32::consts::FRAC_1_SQRT_2;
     let doc = blender_style(
         json!([{"name": "Point", "type": "point", "color": [1.0, 1.0, 1.0], "intensity": candela}]),
-        vec![json!({"name": "Point", "translation": [0.0, 1.0, 0.0], "rotation": [-s, 0.0, 0.0, s],
-                    "extensions": {"KHR_lights_punctual": {"light": 0}}})],
+        vec![
+            json!({"name": "Point", "translation": [0.0, 1.0, 0.0], "rotation": [-s, 0.0, 0.0, s],
+                    "extensions": {"KHR_lights_punctual": {"light": 0}}}),
+        ],
     );
     let path = temp_file("blender-point.gltf");
     fs::write(&path, serde_json::to_vec(&doc).unwrap()).unwrap();
@@ -418,7 +460,10 @@ fn bad_lamps_are_errors_naming_the_file_and_node() {
     let cases = [
         (json!([{"type": "point", "intensity": -5.0}]), "intensity"),
         (json!([{"type": "point", "range": 0.0}]), "range"),
-        (json!([{"type": "point", "color": [1.0, -1.0, 0.0]}]), "color"),
+        (
+            json!([{"type": "point", "color": [1.0, -1.0, 0.0]}]),
+            "color",
+        ),
         (
             json!([{"type": "spot", "spot": {"innerConeAngle": 0.7, "outerConeAngle": 0.5}}]),
             "spot",
@@ -430,8 +475,11 @@ fn bad_lamps_are_errors_naming_the_file_and_node() {
     ];
     for (k, (lights, field)) in cases.into_iter().enumerate() {
         let path = temp_file(&format!("bad-{k}.gltf"));
-        fs::write(&path, serde_json::to_vec(&blender_style(lights, vec![node(0)])).unwrap())
-            .unwrap();
+        fs::write(
+            &path,
+            serde_json::to_vec(&blender_style(lights, vec![node(0)])).unwrap(),
+        )
+        .unwrap();
         let message = match Scene::load(&path) {
             Ok(_) => panic!("case {k} must be refused"),
             Err(e) => e.to_string(),

@@ -102,8 +102,8 @@ impl Lamp {
     pub fn falloff(&self, w: Vec3) -> f32 {
         match self.kind {
             LampKind::Spot { .. } => {
-                let t = ((self.direction.dot(w) - self.cos_outer) * self.falloff_scale)
-                    .clamp(0.0, 1.0);
+                let t =
+                    ((self.direction.dot(w) - self.cos_outer) * self.falloff_scale).clamp(0.0, 1.0);
                 t * t
             }
             _ => 1.0,

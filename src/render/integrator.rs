@@ -5,9 +5,9 @@ use glam::Vec3;
 use std::time::Instant;
 
 use super::stats::{Stats, TIMING_STRIDE, timer_overhead};
-use crate::light::{Strategy, Technique};
 use crate::light::area::LightPoint;
 use crate::light::estimator::{LightContext, LightSample, LightSampler, PickedLight};
+use crate::light::{Strategy, Technique};
 use crate::material::Material;
 use crate::sampling::{Frame, Rng, power_heuristic};
 use crate::scene::bvh::Tracer;

@@ -193,7 +193,9 @@ impl Scene {
             .lamps
             .iter()
             .filter(|l| l.kind != LampKind::Directional)
-            .fold(bounds, |(lo, hi), l| (lo.min(l.position), hi.max(l.position)));
+            .fold(bounds, |(lo, hi), l| {
+                (lo.min(l.position), hi.max(l.position))
+            });
         let radius = 0.5 * (hi - lo).length();
         let lamps = desc.lamps.iter().map(|l| Lamp::new(l, radius)).collect();
         let corners: Vec<[Vec3; 3]> = triangles.iter().map(|t| t.p).collect();

@@ -51,10 +51,7 @@ pub(super) fn node_lamp(
     if let Some(range) = light.range
         && !(range.is_finite() && range > 0.0)
     {
-        return Err(bad(
-            "range",
-            format!("{range} must be finite and positive"),
-        ));
+        return Err(bad("range", format!("{range} must be finite and positive")));
     }
     let kind = match ty {
         punctual::Type::Point => LampKind::Point,
