@@ -451,6 +451,52 @@ fn blender_100_watt_point_lamp_gives_cycles_radiance() {
     let _ = fs::remove_file(&path);
 }
 
+/// Blender 3.4's spot and sun, written as its exporter does: a spot of P watts as a point lamp
+/// of P watts (`P · 683 / (4π)` cd) with `outerConeAngle` = size/2 and `innerConeAngle` =
+/// size/2 · (1 − blend); a sun of S W/m² as `S · 683` lx. On the spot's axis and under the sun,
+/// portalview and Cycles agree: P/(4π) W/sr, and S W/m² on a surface facing the sun.
+#[test]
+fn blender_spot_and_sun_give_their_watts() {
+    let s = std::f32::consts::FRAC_1_SQRT_2;
+    let down = json!([-s, 0.0, 0.0, s]);
+    let (watts, size, blend) = (100.0f32, 1.2f32, 0.5f32);
+    let spot = json!([{"name": "Spot", "type": "spot", "intensity": watts * 683.0 / (4.0 * PI),
+        "spot": {"outerConeAngle": size / 2.0, "innerConeAngle": size / 2.0 * (1.0 - blend)}}]);
+    let strength = 3.0f32;
+    let sun = json!([{"name": "Sun", "type": "directional", "intensity": strength * 683.0}]);
+    let cases = [
+        (spot, [0.0, 1.0, 0.0], f64::from(watts / (4.0 * PI * PI))),
+        (sun, [0.0, 4.0, 0.0], f64::from(strength / PI)),
+    ];
+    for (k, (lights, translation, expected)) in cases.into_iter().enumerate() {
+        let node = json!({"name": "Lamp", "translation": translation, "rotation": down,
+                          "extensions": {"KHR_lights_punctual": {"light": 0}}});
+        let path = temp_file(&format!("blender-{k}.gltf"));
+        fs::write(
+            &path,
+            serde_json::to_vec(&blender_style(lights, vec![node])).unwrap(),
+        )
+        .unwrap();
+        let scene = lambertian(Scene::load(&path).unwrap(), 0, 1.0);
+        let lamp = &scene.desc.lamps[0];
+        assert!(lamp.direction.abs_diff_eq(Vec3::NEG_Y, 1e-6), "points down");
+        if let LampKind::Spot {
+            inner_cone,
+            outer_cone,
+        } = lamp.kind
+        {
+            assert!((outer_cone - 0.6).abs() < 1e-6 && (inner_cone - 0.3).abs() < 1e-6);
+        }
+        let estimate = radiance(&scene, Strategy::Antishadow, Vec3::ZERO, 16);
+        assert!(
+            agrees(estimate, expected),
+            "case {k}: {estimate:?} vs {expected}"
+        );
+        assert!(!agrees(estimate, expected * 683.0), "case {k}");
+        let _ = fs::remove_file(&path);
+    }
+}
+
 #[test]
 fn bad_lamps_are_errors_naming_the_file_and_node() {
     let node = |light: usize| {
