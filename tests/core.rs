@@ -290,6 +290,7 @@ fn white_lambertian_furnace_returns_one() {
         ],
         portals: vec![],
         lamps: vec![],
+        warnings: Vec::new(),
         camera: camera(Vec3::new(0.0, 0.0, 4.0), Vec3::ZERO),
     };
     let mut scene = lambertian(Scene::from_desc(desc, "furnace").unwrap(), 0, 1.0);

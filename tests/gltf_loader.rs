@@ -282,6 +282,7 @@ fn sample_scene() -> SceneDesc {
             yfov: 0.7,
             aspect: 1.5,
         }),
+        warnings: Vec::new(),
     }
 }
 
@@ -515,6 +516,43 @@ fn blender_style_portal_extras() {
     assert!(close(camera.up, pitch * Vec3::Y));
     assert!((camera.yfov - 0.6911112).abs() < EPS);
     assert!((camera.aspect - 4.0 / 3.0).abs() < EPS);
+    let _ = fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn unread_extensions_and_textures_are_warnings_naming_the_file() {
+    let dir = temp_dir("unread");
+    let path = write_blender_style(&dir, "textured.gltf");
+    let scene = load_gltf(&path).unwrap();
+    assert_eq!(scene.warnings.len(), 1, "{:?}", scene.warnings);
+    let warning = &scene.warnings[0];
+    assert!(
+        warning.contains("textured.gltf") && warning.contains("KHR_texture_transform"),
+        "{warning}"
+    );
+    // A texture on the floor's material: read as its factors alone, and said so.
+    let mut doc: Value = serde_json::from_slice(&fs::read(&path).unwrap()).unwrap();
+    doc["materials"][0]["pbrMetallicRoughness"]["baseColorTexture"] = json!({"index": 0});
+    doc["materials"][0]["normalTexture"] = json!({"index": 0});
+    doc["textures"] = json!([{"source": 0}]);
+    doc["images"] = json!([{"uri": "wood.png"}]);
+    write_json(&path, &doc);
+    let scene = load_gltf(&path).unwrap();
+    let texture_warning = scene
+        .warnings
+        .iter()
+        .find(|w| w.contains("baseColorTexture"))
+        .unwrap_or_else(|| panic!("no texture warning in {:?}", scene.warnings));
+    assert!(
+        texture_warning.contains("textured.gltf")
+            && texture_warning.contains("White")
+            && texture_warning.contains("normalTexture"),
+        "{texture_warning}"
+    );
+    // A file that uses only what is read has no warnings.
+    let plain = dir.join("plain.glb");
+    export_glb(&sample_scene(), &plain).unwrap();
+    assert!(load_gltf(&plain).unwrap().warnings.is_empty());
     let _ = fs::remove_dir_all(&dir);
 }
 

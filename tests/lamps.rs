@@ -50,6 +50,7 @@ fn floor_only() -> SceneDesc {
         )],
         portals: vec![],
         lamps: vec![],
+        warnings: Vec::new(),
         camera: camera(Vec3::new(0.0, 3.0, 3.0), Vec3::ZERO),
     }
 }

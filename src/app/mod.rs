@@ -309,6 +309,9 @@ impl PortalViewApp {
         self.job = None;
         match result {
             Ok(Done::Opened { name, scene }) => {
+                // What the file holds that is not read is said, not dropped in silence.
+                let warnings = &scene.desc.warnings;
+                self.message = (!warnings.is_empty()).then(|| warnings.join("\n"));
                 self.show_scene(scene, name);
                 self.restart();
             }

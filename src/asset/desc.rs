@@ -154,4 +154,7 @@ pub struct SceneDesc {
     pub lamps: Vec<LampDesc>,
     /// The file's first camera, if any (else one is made to frame the scene).
     pub camera: Option<Camera>,
+    /// What the file holds that is not read (an extension, a texture), each naming the file
+    /// and what is left out: shown to the user, never dropped in silence.
+    pub warnings: Vec<String>,
 }

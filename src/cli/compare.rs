@@ -9,7 +9,6 @@ use super::ImageArgs;
 use crate::compare::report::sci;
 use crate::compare::*;
 use crate::light::Strategy;
-use crate::scene::Scene;
 
 /// `portalview compare`: every strategy gets the same pass render time; MSE against a reference
 /// is recorded as they converge. Writes convergence.csv, convergence.svg and summary.md into
@@ -101,7 +100,7 @@ pub fn run(args: &CompareArgs) -> Result<()> {
     let mut comparisons = Vec::new();
     let mut written = Vec::new();
     for name in &names {
-        let mut scene = Scene::open(name)?;
+        let mut scene = super::open_scene(name)?;
         if scene.name.is_empty() {
             scene.name = name.clone();
         }

@@ -16,6 +16,8 @@ pub use compare::CompareArgs;
 pub use render::RenderArgs;
 pub use view::ViewArgs;
 
+use crate::scene::Scene;
+
 #[derive(Parser, Debug)]
 #[command(
     name = "portalview",
@@ -55,6 +57,16 @@ pub fn run(command: Command) -> Result<()> {
         Command::Bench(args) => bench::run(&args),
         Command::Compare(args) => compare::run(&args),
     }
+}
+
+/// Opens a built-in scene or a glTF file, printing on stderr what the file holds that is not
+/// read.
+fn open_scene(name: &str) -> Result<Scene> {
+    let scene = Scene::open(name)?;
+    for warning in &scene.desc.warnings {
+        eprintln!("warning: {warning}");
+    }
+    Ok(scene)
 }
 
 /// Image options shared by `render` and `compare` (their widths differ in default).

@@ -14,7 +14,6 @@ use crate::light::antishadow::Region;
 use crate::render::integrator::{Integrator, RenderSettings};
 use crate::render::stats::Stats;
 use crate::render::{film::Film, render_pass, tonemap};
-use crate::scene::Scene;
 
 #[derive(Args, Debug, Clone)]
 pub struct RenderArgs {
@@ -50,7 +49,7 @@ pub fn run(args: &RenderArgs) -> Result<()> {
     if let Some(a) = args.alpha {
         anyhow::ensure!((0.0..=1.0).contains(&a), "--alpha {a} is not in [0, 1]");
     }
-    let scene = Scene::open(&args.scene)?;
+    let scene = super::open_scene(&args.scene)?;
     let width = args.width;
     let height = args
         .image

@@ -117,7 +117,9 @@ pub fn load_gltf(path: &Path) -> Result<SceneDesc, GltfError> {
             buffers: &buffers,
         };
         let visits = walk_scene(path, &root)?;
-        doc.scene(&visits)
+        let mut desc = doc.scene(&visits)?;
+        desc.warnings = unread_features(path, &root);
+        Ok(desc)
     })
 }
 

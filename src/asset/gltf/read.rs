@@ -326,6 +326,7 @@ impl<'a> Doc<'a> {
             portals,
             lamps,
             camera,
+            warnings: Vec::new(),
         })
     }
 

@@ -202,3 +202,49 @@ pub(super) fn check_material(file: &Path, k: usize, m: &MaterialDesc) -> Result<
     }
     Ok(())
 }
+
+/// Extensions whose content is read (the others may only be ignored, with a warning).
+const READ_EXTENSIONS: [&str; 3] = [
+    "KHR_materials_emissive_strength",
+    "KHR_lights_punctual",
+    "KHR_mesh_quantization",
+];
+
+/// A warning, naming the file, for every extension the file uses that is not read and every
+/// material texture (textures are not read: the factors alone are used).
+pub(super) fn unread_features(file: &Path, root: &json::Root) -> Vec<String> {
+    let mut warnings: Vec<String> = root
+        .extensions_used
+        .iter()
+        .filter(|e| !READ_EXTENSIONS.contains(&e.as_str()))
+        .map(|e| {
+            format!(
+                "{}: extension {e} is not read; what it adds is ignored",
+                file.display()
+            )
+        })
+        .collect();
+    for (i, m) in root.materials.iter().enumerate() {
+        let pbr = &m.pbr_metallic_roughness;
+        let textures = [
+            ("baseColorTexture", pbr.base_color_texture.is_some()),
+            (
+                "metallicRoughnessTexture",
+                pbr.metallic_roughness_texture.is_some(),
+            ),
+            ("normalTexture", m.normal_texture.is_some()),
+            ("occlusionTexture", m.occlusion_texture.is_some()),
+            ("emissiveTexture", m.emissive_texture.is_some()),
+        ];
+        let unread: Vec<&str> = textures.iter().filter(|t| t.1).map(|t| t.0).collect();
+        if !unread.is_empty() {
+            warnings.push(format!(
+                "{}: {}: {} not read (textures are not supported yet; the factors are used)",
+                file.display(),
+                label("material", i, m.name.as_deref()),
+                unread.join(", ")
+            ));
+        }
+    }
+    warnings
+}
