@@ -37,7 +37,10 @@ use json::mesh::{Mode, Semantic};
 use json::validation::{Checked, USize64, Validate};
 use serde_json::{Map, Value};
 
-use crate::asset::desc::{DEFAULT_PORTAL_ALPHA, MaterialDesc, MeshDesc, PortalDesc, SceneDesc};
+use crate::asset::desc::{
+    DEFAULT_IOR, DEFAULT_PORTAL_ALPHA, DEFAULT_SPECULAR_COLOR, DEFAULT_SPECULAR_FACTOR,
+    MaterialDesc, MeshDesc, PortalDesc, SceneDesc,
+};
 use crate::camera::Camera;
 
 /// The most vertices, or triangles, a file may hold (per accessor and over the whole scene).
@@ -49,6 +52,8 @@ pub const PORTAL_ALPHA_KEY: &str = "portal_light_probability";
 /// Camera-node `extras` key for the eye-to-target distance (glTF cameras have no target).
 const CAMERA_TARGET_DISTANCE_KEY: &str = "portalview_target_distance";
 const EMISSIVE_STRENGTH_EXTENSION: &str = "KHR_materials_emissive_strength";
+const SPECULAR_EXTENSION: &str = "KHR_materials_specular";
+const IOR_EXTENSION: &str = "KHR_materials_ior";
 /// Width over height of a perspective camera without `aspectRatio`.
 const DEFAULT_ASPECT: f32 = 4.0 / 3.0;
 
@@ -103,11 +108,24 @@ fn internal(file: &Path, message: impl ToString) -> GltfError {
     }
 }
 
-/// Reads a `.gltf` or `.glb` file's default scene (else its first) into world space.
+/// Reads a `.gltf` or `.glb` file's default scene (else its first) into world space, printing
+/// on stderr what the file uses that is not read (see [`load_gltf_with_warnings`]).
 pub fn load_gltf(path: &Path) -> Result<SceneDesc, GltfError> {
+    let (desc, warnings) = load_gltf_with_warnings(path)?;
+    for warning in warnings {
+        eprintln!("warning: {warning}");
+    }
+    Ok(desc)
+}
+
+/// Reads a `.gltf` or `.glb` file's default scene (else its first) into world space, and says
+/// what it uses that is not read (extensions, textures of the specular layer): each warning
+/// names the file and what is ignored.
+pub fn load_gltf_with_warnings(path: &Path) -> Result<(SceneDesc, Vec<String>), GltfError> {
     guarded(path, || {
         let source = read_source(path)?;
         let root = parse_document(path, source.json())?;
+        let mut warnings = unread_extensions(path, &root);
         let buffers = load_buffers(path, &root, source.bin())?;
         let doc = Doc {
             file: path,
@@ -115,7 +133,8 @@ pub fn load_gltf(path: &Path) -> Result<SceneDesc, GltfError> {
             buffers: &buffers,
         };
         let visits = walk_scene(path, &root)?;
-        doc.scene(&visits)
+        let desc = doc.scene(&visits, &mut warnings)?;
+        Ok((desc, warnings))
     })
 }
 
