@@ -221,7 +221,8 @@ pub fn ggx_albedo(cos_o: f32, alpha: f32) -> (f32, f32) {
     );
     let (tx, ty) = (x - i as f32, y - j as f32);
     let at = |i: usize, j: usize| table[j * (ALBEDO_COS_CELLS + 1) + i];
-    let lerp = |a: [f32; 2], b: [f32; 2], t: f32| [a[0] + (b[0] - a[0]) * t, a[1] + (b[1] - a[1]) * t];
+    let lerp =
+        |a: [f32; 2], b: [f32; 2], t: f32| [a[0] + (b[0] - a[0]) * t, a[1] + (b[1] - a[1]) * t];
     let [a, b] = lerp(
         lerp(at(i, j), at(i + 1, j), tx),
         lerp(at(i, j + 1), at(i + 1, j + 1), tx),
@@ -250,14 +251,17 @@ fn albedo_table() -> Vec<[f32; 2]> {
                 // `u.x = 1 − (1 − t)²` crowds the points towards the rim of the sampled disk
                 // (the far tail of normals, where wi meets the horizon); `2(1 − t)` is dx/dt.
                 let t = ((k % n) as f32 + 0.5) / n as f32;
-                let u = Vec2::new(1.0 - (1.0 - t) * (1.0 - t), ((k / n) as f32 + 0.5) / n as f32);
+                let u = Vec2::new(
+                    1.0 - (1.0 - t) * (1.0 - t),
+                    ((k / n) as f32 + 0.5) / n as f32,
+                );
                 let h = sample_ggx_vndf(wo, alpha, u);
                 let wi = 2.0 * wo.dot(h) * h - wo;
                 if wi.z <= 0.0 {
                     continue;
                 }
-                let weight = 2.0 * (1.0 - t) * (1.0 + lambda_o)
-                    / (1.0 + lambda_o + ggx_lambda(wi, alpha));
+                let weight =
+                    2.0 * (1.0 - t) * (1.0 + lambda_o) / (1.0 + lambda_o + ggx_lambda(wi, alpha));
                 let c5 = schlick_weight(wo.dot(h));
                 a += (weight * (1.0 - c5)) as f64;
                 b += (weight * c5) as f64;
@@ -338,10 +342,11 @@ mod tests {
     #[test]
     fn sample_pdf_matches_eval_pdf() {
         let mut rng = Rng::new(1, 2);
-        let mut configurations: Vec<MaterialDesc> = [(0.0, 1.0), (0.0, 0.2), (1.0, 0.3), (0.5, 0.05)]
-            .iter()
-            .map(|&(m, r)| desc(m, r, Vec3::splat(0.7)))
-            .collect();
+        let mut configurations: Vec<MaterialDesc> =
+            [(0.0, 1.0), (0.0, 0.2), (1.0, 0.3), (0.5, 0.05)]
+                .iter()
+                .map(|&(m, r)| desc(m, r, Vec3::splat(0.7)))
+                .collect();
         configurations.extend([
             blender_specular_zero(Vec3::splat(0.7)),
             MaterialDesc {
@@ -396,7 +401,10 @@ mod tests {
                     }
                 }
                 total *= 2.0 * PI as f64 / (n * n) as f64;
-                assert!(total <= 1.0 + 2e-3 && total > 0.8, "{d:?} cos {cos_o}: {total}");
+                assert!(
+                    total <= 1.0 + 2e-3 && total > 0.8,
+                    "{d:?} cos {cos_o}: {total}"
+                );
             }
         }
     }
@@ -452,13 +460,23 @@ mod tests {
             })
         };
         // glTF's default: 0.04 from ior 1.5.
-        assert!((m(1.0, Vec3::ONE, 1.5).f0 - Vec3::splat(0.04)).abs().max_element() < 1e-7);
+        assert!(
+            (m(1.0, Vec3::ONE, 1.5).f0 - Vec3::splat(0.04))
+                .abs()
+                .max_element()
+                < 1e-7
+        );
         // ior 0 is the "infinite" IOR: F0 = 1; the colour is clamped to 1 before the factor.
         assert_eq!(m(0.5, Vec3::splat(3.0), 0.0).f0, Vec3::splat(0.5));
         // Blender 3.4 exports Specular s as specularColorFactor 0.08·s / F0(ior).
         let s = 0.7;
         let color = Vec3::splat(0.08 * s / f0_from_ior(1.45));
-        assert!((m(1.0, color, 1.45).f0 - Vec3::splat(0.08 * s)).abs().max_element() < 1e-6);
+        assert!(
+            (m(1.0, color, 1.45).f0 - Vec3::splat(0.08 * s))
+                .abs()
+                .max_element()
+                < 1e-6
+        );
     }
 
     /// `(A, B)` by an independent quadrature: a midpoint rule over (cos θi, φ) of
@@ -530,7 +548,10 @@ mod tests {
         for j in 0..=40 {
             for i in 0..=40 {
                 let (a, b) = ggx_albedo(i as f32 / 40.0, (j as f32 / 40.0).powi(2));
-                assert!(a + b <= 1.0 + 1e-4 && a >= 0.0 && b >= 0.0, "{i} {j}: {a} + {b}");
+                assert!(
+                    a + b <= 1.0 + 1e-4 && a >= 0.0 && b >= 0.0,
+                    "{i} {j}: {a} + {b}"
+                );
             }
         }
     }
@@ -576,7 +597,8 @@ mod tests {
                 let (without, se_zero) = albedo(&zero, wo, &mut rng, 1000);
                 // Lambert sampled by its own cosine: every sample is exactly ρ.
                 assert_eq!((without, se_zero), (rho as f64, 0.0));
-                let (a, b) = albedo_by_quadrature(cos_o as f64, (roughness * roughness) as f64, 600);
+                let (a, b) =
+                    albedo_by_quadrature(cos_o as f64, (roughness * roughness) as f64, 600);
                 let energy = 0.04 * a + b;
                 let expected = (1.0 - rho as f64) * energy;
                 let measured = with_layer - without;

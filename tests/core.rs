@@ -4,7 +4,7 @@
 mod common;
 
 use common::*;
-use glam::{Vec2, Vec3};
+use glam::Vec3;
 use portalview::asset::desc::{MaterialDesc, SceneDesc};
 use portalview::light::Strategy;
 use portalview::material::Material;
@@ -12,7 +12,7 @@ use portalview::render::integrator::{Integrator, RenderSettings};
 use portalview::render::record::Recorder;
 use portalview::render::stats::Stats;
 use portalview::render::{Tiles, render, render_pass, render_tile};
-use portalview::sampling::{Rng, sample_cosine_hemisphere};
+use portalview::sampling::Rng;
 use portalview::scene::Scene;
 use portalview::scene::bvh::Bvh;
 

@@ -923,12 +923,19 @@ fn broken_files_give_errors_naming_the_file_and_field() {
         (
             "ior_not_a_number.gltf",
             edited(|d| with_material(d, json!({"KHR_materials_ior": {"ior": "NaN"}}))),
-            &["material 0 \"Paint\"", "KHR_materials_ior.ior", "finite number"],
+            &[
+                "material 0 \"Paint\"",
+                "KHR_materials_ior.ior",
+                "finite number",
+            ],
         ),
         (
             "negative_specular.gltf",
             edited(|d| {
-                with_material(d, json!({"KHR_materials_specular": {"specularFactor": -0.1}}))
+                with_material(
+                    d,
+                    json!({"KHR_materials_specular": {"specularFactor": -0.1}}),
+                )
             }),
             &["material 0 \"Paint\"", "specularFactor", "[0, 1]"],
         ),
@@ -950,7 +957,10 @@ fn broken_files_give_errors_naming_the_file_and_field() {
         (
             "short_specular_color.gltf",
             edited(|d| {
-                with_material(d, json!({"KHR_materials_specular": {"specularColorFactor": [1]}}))
+                with_material(
+                    d,
+                    json!({"KHR_materials_specular": {"specularColorFactor": [1]}}),
+                )
             }),
             &["material 0 \"Paint\"", "specularColorFactor", "3 numbers"],
         ),
@@ -962,12 +972,19 @@ fn broken_files_give_errors_naming_the_file_and_field() {
                     json!({"KHR_materials_specular": {"specularColorFactor": [1, null, 0]}}),
                 )
             }),
-            &["material 0 \"Paint\"", "specularColorFactor", "finite number"],
+            &[
+                "material 0 \"Paint\"",
+                "specularColorFactor",
+                "finite number",
+            ],
         ),
         (
             "specular_texture_missing.gltf",
             edited(|d| {
-                with_material(d, json!({"KHR_materials_specular": {"specularTexture": {"index": 4}}}))
+                with_material(
+                    d,
+                    json!({"KHR_materials_specular": {"specularTexture": {"index": 4}}}),
+                )
             }),
             &["material 0 \"Paint\"", "specularTexture.index", "texture 4"],
         ),
@@ -1119,7 +1136,10 @@ fn unread_textures_and_extensions_warn() {
     ] {
         assert!(all.contains(word), "no \"{word}\" in {all}");
     }
-    assert!(!all.contains("KHR_materials_specular,"), "it is read: {all}");
+    assert!(
+        !all.contains("KHR_materials_specular,"),
+        "it is read: {all}"
+    );
     let _ = fs::remove_dir_all(&dir);
 }
 
@@ -1148,12 +1168,17 @@ fn specular_and_ior_round_trip() {
     assert_scenes_close(&load_gltf(&path).unwrap(), &plain);
     let extensions = used(&path);
     assert!(
-        !extensions.iter().any(|e| e != "KHR_materials_emissive_strength"),
+        !extensions
+            .iter()
+            .any(|e| e != "KHR_materials_emissive_strength"),
         "{extensions:?}"
     );
     // What a file could not hold is refused, naming the file and the material.
     for (field, edit) in [
-        ("ior", (|m: &mut MaterialDesc| m.ior = 0.9) as fn(&mut MaterialDesc)),
+        (
+            "ior",
+            (|m: &mut MaterialDesc| m.ior = 0.9) as fn(&mut MaterialDesc),
+        ),
         ("ior", |m| m.ior = f32::NAN),
         ("specular factor", |m| m.specular_factor = 1.5),
         ("negative", |m| m.specular_color = Vec3::new(0.0, -1.0, 0.0)),
@@ -1166,7 +1191,10 @@ fn specular_and_ior_round_trip() {
             message.contains("scene.glb") && message.contains("material 0 \"floor\""),
             "{message}"
         );
-        assert!(message.contains(field) || field == "ior" && message.contains("finite"), "{message}");
+        assert!(
+            message.contains(field) || field == "ior" && message.contains("finite"),
+            "{message}"
+        );
     }
     let _ = fs::remove_dir_all(&dir);
 }

@@ -646,17 +646,15 @@ pub(super) fn material_desc(
         }
     }
     let mut ior = DEFAULT_IOR;
-    if let Some(extension) = extension(IOR_EXTENSION)? {
-        if let Some(value) = extension.get("ior") {
-            let at = format!("{at}, extensions.{IOR_EXTENSION}.ior");
-            ior = number(file, &at, value)?;
-            if !(ior == 0.0 || ior >= 1.0) {
-                return Err(invalid(
-                    file,
-                    at,
-                    format!("must be 0 (infinite) or at least 1, found {value}"),
-                ));
-            }
+    if let Some(value) = extension(IOR_EXTENSION)?.and_then(|e| e.get("ior")) {
+        let at = format!("{at}, extensions.{IOR_EXTENSION}.ior");
+        ior = number(file, &at, value)?;
+        if !(ior == 0.0 || ior >= 1.0) {
+            return Err(invalid(
+                file,
+                at,
+                format!("must be 0 (infinite) or at least 1, found {value}"),
+            ));
         }
     }
     Ok(MaterialDesc {

@@ -107,7 +107,11 @@ pub(super) fn unread_extensions(file: &Path, root: &json::Root) -> Vec<String> {
         "{}: extensionsUsed: {} not read; the file renders as if {} absent",
         file.display(),
         unread.join(", "),
-        if unread.len() == 1 { "it were" } else { "they were" }
+        if unread.len() == 1 {
+            "it were"
+        } else {
+            "they were"
+        }
     )]
 }
 
