@@ -39,6 +39,9 @@ pub struct Material {
     pub emission: Vec3,
     /// Emits (and is lit) from both sides; otherwise only from the front of its winding.
     pub double_sided: bool,
+    /// What depends on `wo` only, at the albedo table's columns of `√cos θo`: see
+    /// [`Material::lobe_weights`].
+    lobes: [[f32; 2]; ALBEDO_COS_CELLS + 1],
 }
 
 /// A direction drawn from the BSDF with its value and solid-angle pdf.
@@ -74,7 +77,29 @@ impl Material {
             f90,
             emission: desc.radiance().max(Vec3::ZERO),
             double_sided: desc.double_sided,
+            lobes: [[0.0; 2]; ALBEDO_COS_CELLS + 1],
         }
+        .with_lobes()
+    }
+
+    /// Fills `lobes` from the other fields: the specular layer's albedo and the probability
+    /// of sampling the specular lobes at each column of `√cos θo`.
+    fn with_lobes(mut self) -> Self {
+        for (i, lobe) in self.lobes.iter_mut().enumerate() {
+            let cos_o = (i as f32 / ALBEDO_COS_CELLS as f32).powi(2);
+            let (a, b) = ggx_albedo(cos_o, self.alpha);
+            let m = self.metallic;
+            let mean = |v: Vec3| (v.x + v.y + v.z) / 3.0;
+            // Rounded up by the table's relative error, so the diffuse never keeps energy the
+            // lobe reflects (a layer with F0 = F90 = 0 still takes exactly nothing).
+            let e_max = ((self.f0.max_element() * a + self.f90 * b) * ALBEDO_ROUND_UP).min(1.0);
+            let dielectric = mean(self.f0) * a + self.f90 * b;
+            let specular = (1.0 - m) * dielectric + m * (mean(self.base_color) * a + b);
+            let diffuse = (1.0 - m) * (1.0 - e_max) * mean(self.base_color);
+            let total = specular + diffuse;
+            *lobe = [e_max, if total > 0.0 { specular / total } else { 0.0 }];
+        }
+        self
     }
 
     /// A pure Lambertian reflector (no specular layer).
@@ -87,6 +112,7 @@ impl Material {
             f90: 0.0,
             emission: Vec3::ZERO,
             double_sided: true,
+            lobes: [[0.0; 2]; ALBEDO_COS_CELLS + 1],
         }
     }
 
@@ -110,19 +136,13 @@ impl Material {
 
     /// `E(wo)` (see [`Self::specular_albedo`], at most 1) and the probability of sampling the
     /// specular lobes, from the lobes' albedos: functions of `wo` only, shared by `eval_pdf`
-    /// and `sample_direction`.
+    /// and `sample_direction`, interpolated between the columns of `lobes`.
     fn lobe_weights(&self, cos_o: f32) -> (f32, f32) {
-        let (a, b) = ggx_albedo(cos_o, self.alpha);
-        let m = self.metallic;
-        let mean = |v: Vec3| (v.x + v.y + v.z) / 3.0;
-        // Rounded up by the table's relative error, so the diffuse never keeps energy the
-        // lobe reflects (a layer with F0 = F90 = 0 still takes exactly nothing).
-        let e_max = ((self.f0.max_element() * a + self.f90 * b) * ALBEDO_ROUND_UP).min(1.0);
-        let dielectric = mean(self.f0) * a + self.f90 * b;
-        let specular = (1.0 - m) * dielectric + m * (mean(self.base_color) * a + b);
-        let diffuse = (1.0 - m) * (1.0 - e_max) * mean(self.base_color);
-        let total = specular + diffuse;
-        (e_max, if total > 0.0 { specular / total } else { 0.0 })
+        let x = cos_o.clamp(0.0, 1.0).sqrt() * ALBEDO_COS_CELLS as f32;
+        let i = (x as usize).min(ALBEDO_COS_CELLS - 1);
+        let t = x - i as f32;
+        let ([e0, p0], [e1, p1]) = (self.lobes[i], self.lobes[i + 1]);
+        (e0 + (e1 - e0) * t, p0 + (p1 - p0) * t)
     }
 
     /// Whether there is any specular lobe (dielectric layer or metal).
@@ -162,8 +182,10 @@ impl Material {
         let dg = d / ((1.0 + lambda_o + lambda_i) * 4.0 * wo.z * wi.z);
         let c5 = schlick_weight(wo.dot(h));
         let dielectric = self.f0 + (Vec3::splat(self.f90) - self.f0) * c5;
-        let metal = self.base_color + (Vec3::ONE - self.base_color) * c5;
-        let f = diffuse + dg * ((1.0 - m) * dielectric + m * metal);
+        let mut f = diffuse + dg * (1.0 - m) * dielectric;
+        if m > 0.0 {
+            f += dg * m * (self.base_color + (Vec3::ONE - self.base_color) * c5);
+        }
         let pdf_specular = d / ((1.0 + lambda_o) * 4.0 * wo.z);
         (f, pdf_diffuse + p_spec * pdf_specular)
     }
