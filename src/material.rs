@@ -1,13 +1,21 @@
-//! The BSDF: glTF metallic-roughness as Lambertian diffuse plus a GGX microfacet lobe.
+//! The BSDF: glTF metallic-roughness with `KHR_materials_specular` and `KHR_materials_ior`, as
+//! a Lambertian diffuse under a dielectric GGX layer, mixed with a GGX metal.
 //!
-//! Energy conservation by construction: the dielectric part mixes diffuse and specular with a
-//! weight `s = F(cos θo)` that depends on the outgoing direction only, and each lobe reflects at
-//! most what it receives (single-scattering GGX loses energy, never gains it); the metallic part
-//! is GGX tinted by a Fresnel term bounded by 1. All directions are in the local shading frame
-//! (normal = +z) and `wo.z > 0`.
+//! The dielectric layer's Fresnel is Schlick's with, per the extension texts,
+//! `F0 = min(((ior − 1)/(ior + 1))² · specularColor, 1) · specularFactor` and
+//! `F90 = specularFactor`, evaluated at the microfacet (`wo·h`) as the glTF Sample Viewer does.
+//! One exception: a layer whose F0 is zero in every channel reflects nothing (F90 = 0), which
+//! is what Blender means by Principled *Specular* 0 (see `docs/method.md`).
+//!
+//! Energy conservation by construction: the diffuse loses exactly the directional albedo
+//! `E(wo)` of the specular layer (its largest channel), looked up in a table of the GGX
+//! albedo with Schlick's Fresnel, so `diffuse + specular ≤ 1` for every `wo`, and a layer
+//! with F0 = F90 = 0 leaves exactly Lambert. The metallic part is GGX tinted by a Fresnel
+//! bounded by 1. All directions are in the local shading frame (normal = +z) and `wo.z > 0`.
 
 use glam::{Vec2, Vec3};
 use std::f32::consts::{FRAC_1_PI, PI};
+use std::sync::OnceLock;
 
 use crate::asset::desc::MaterialDesc;
 use crate::sampling::{cosine_hemisphere_pdf, sample_cosine_hemisphere, sin_cos_turn};
@@ -21,14 +29,19 @@ pub struct Material {
     pub metallic: f32,
     /// GGX alpha = perceptual roughness squared.
     pub alpha: f32,
-    /// Normal-incidence reflectance of the dielectric specular layer (0.04 in glTF).
-    pub f0_dielectric: f32,
-    /// Weight of the dielectric specular layer: 1 for glTF materials, 0 for a pure Lambertian.
-    pub specular: f32,
+    /// Reflectance of the dielectric specular layer at normal incidence, per channel, with the
+    /// specular factor applied (0.04 for a glTF material without extensions).
+    pub f0: Vec3,
+    /// Reflectance of the dielectric specular layer at grazing incidence: the specular factor,
+    /// or 0 when `f0` is zero (no layer).
+    pub f90: f32,
     /// Emitted radiance, W/(sr·m²).
     pub emission: Vec3,
     /// Emits (and is lit) from both sides; otherwise only from the front of its winding.
     pub double_sided: bool,
+    /// What depends on `wo` only, at the albedo table's columns of `√cos θo`: see
+    /// [`Material::lobe_weights`].
+    lobes: [[f32; 2]; ALBEDO_COS_CELLS + 1],
 }
 
 /// A direction drawn from the BSDF with its value and solid-angle pdf.
@@ -39,18 +52,54 @@ pub struct BsdfSample {
     pub pdf: f32,
 }
 
+/// Normal-incidence reflectance of a dielectric interface with air: `((ior − 1)/(ior + 1))²`.
+/// `ior = 0` is glTF's "infinite" IOR and gives 1.
+pub fn f0_from_ior(ior: f32) -> f32 {
+    let r = (ior - 1.0) / (ior + 1.0);
+    r * r
+}
+
 impl Material {
     pub fn from_desc(desc: &MaterialDesc) -> Self {
         let r = desc.roughness.clamp(0.0, 1.0);
+        let weight = desc.specular_factor.clamp(0.0, 1.0);
+        let f0 = (f0_from_ior(desc.ior.max(0.0)) * desc.specular_color.max(Vec3::ZERO))
+            .min(Vec3::ONE)
+            * weight;
+        // Schlick's F90 = 1 describes an interface; F0 = 0 in every channel means there is
+        // none (Blender's Specular 0, or ior = 1), so the layer is absent rather than a rim.
+        let f90 = if f0.max_element() > 0.0 { weight } else { 0.0 };
         Material {
             base_color: desc.base_color.clamp(Vec3::ZERO, Vec3::ONE),
             metallic: desc.metallic.clamp(0.0, 1.0),
             alpha: (r * r).max(MIN_ALPHA),
-            f0_dielectric: 0.04,
-            specular: 1.0,
+            f0,
+            f90,
             emission: desc.radiance().max(Vec3::ZERO),
             double_sided: desc.double_sided,
+            lobes: [[0.0; 2]; ALBEDO_COS_CELLS + 1],
         }
+        .with_lobes()
+    }
+
+    /// Fills `lobes` from the other fields: the specular layer's albedo and the probability
+    /// of sampling the specular lobes at each column of `√cos θo`.
+    fn with_lobes(mut self) -> Self {
+        for (i, lobe) in self.lobes.iter_mut().enumerate() {
+            let cos_o = (i as f32 / ALBEDO_COS_CELLS as f32).powi(2);
+            let (a, b) = ggx_albedo(cos_o, self.alpha);
+            let m = self.metallic;
+            let mean = |v: Vec3| (v.x + v.y + v.z) / 3.0;
+            // Rounded up by the table's relative error, so the diffuse never keeps energy the
+            // lobe reflects (a layer with F0 = F90 = 0 still takes exactly nothing).
+            let e_max = ((self.f0.max_element() * a + self.f90 * b) * ALBEDO_ROUND_UP).min(1.0);
+            let dielectric = mean(self.f0) * a + self.f90 * b;
+            let specular = (1.0 - m) * dielectric + m * (mean(self.base_color) * a + b);
+            let diffuse = (1.0 - m) * (1.0 - e_max) * mean(self.base_color);
+            let total = specular + diffuse;
+            *lobe = [e_max, if total > 0.0 { specular / total } else { 0.0 }];
+        }
+        self
     }
 
     /// A pure Lambertian reflector (no specular layer).
@@ -59,10 +108,11 @@ impl Material {
             base_color: albedo,
             metallic: 0.0,
             alpha: 1.0,
-            f0_dielectric: 0.0,
-            specular: 0.0,
+            f0: Vec3::ZERO,
+            f90: 0.0,
             emission: Vec3::ZERO,
             double_sided: true,
+            lobes: [[0.0; 2]; ALBEDO_COS_CELLS + 1],
         }
     }
 
@@ -72,18 +122,32 @@ impl Material {
 
     /// Whether the material reflects at all (black materials skip shading).
     pub fn is_black(&self) -> bool {
-        self.base_color.max_element() <= 0.0 && self.specular <= 0.0
+        self.metallic <= 0.0
+            && self.base_color.max_element() <= 0.0
+            && self.f0.max_element() <= 0.0
+            && self.f90 <= 0.0
     }
 
-    /// The dielectric specular weight for this outgoing direction.
-    fn specular_weight(&self, cos_o: f32) -> f32 {
-        self.specular * schlick(self.f0_dielectric, cos_o)
+    /// The dielectric specular layer's directional albedo `E(wo)` in its largest channel:
+    /// the energy it takes from the diffuse beneath.
+    pub fn specular_albedo(&self, cos_o: f32) -> f32 {
+        self.lobe_weights(cos_o).0
     }
 
-    /// Probability of sampling the specular lobe (the pdf in `eval_pdf` mixes by the same).
-    fn specular_probability(&self, cos_o: f32) -> f32 {
-        let m = self.metallic;
-        m + (1.0 - m) * self.specular_weight(cos_o)
+    /// `E(wo)` (see [`Self::specular_albedo`], at most 1) and the probability of sampling the
+    /// specular lobes, from the lobes' albedos: functions of `wo` only, shared by `eval_pdf`
+    /// and `sample_direction`, interpolated between the columns of `lobes`.
+    fn lobe_weights(&self, cos_o: f32) -> (f32, f32) {
+        let x = cos_o.clamp(0.0, 1.0).sqrt() * ALBEDO_COS_CELLS as f32;
+        let i = (x as usize).min(ALBEDO_COS_CELLS - 1);
+        let t = x - i as f32;
+        let ([e0, p0], [e1, p1]) = (self.lobes[i], self.lobes[i + 1]);
+        (e0 + (e1 - e0) * t, p0 + (p1 - p0) * t)
+    }
+
+    /// Whether there is any specular lobe (dielectric layer or metal).
+    fn has_specular(&self) -> bool {
+        self.metallic > 0.0 || self.f90 > 0.0 || self.f0.max_element() > 0.0
     }
 
     /// BSDF value `f(wo, wi)` (without the cosine).
@@ -103,24 +167,24 @@ impl Material {
             return (Vec3::ZERO, 0.0);
         }
         let m = self.metallic;
-        let s = self.specular_weight(wo.z);
-        let diffuse = (1.0 - m) * (1.0 - s) * self.base_color * FRAC_1_PI;
-        // `specular_probability`, sharing `s`.
-        let p_spec = m + (1.0 - m) * s;
-        let pdf_diffuse = (1.0 - p_spec) * cosine_hemisphere_pdf(wi.z);
-        if p_spec <= 0.0 {
-            return (diffuse, pdf_diffuse);
+        if !self.has_specular() {
+            return (self.base_color * FRAC_1_PI, cosine_hemisphere_pdf(wi.z));
         }
+        // The diffuse keeps what the specular layer does not reflect.
+        let (e_spec, p_spec) = self.lobe_weights(wo.z);
+        let diffuse = (1.0 - m) * (1.0 - e_spec) * self.base_color * FRAC_1_PI;
+        let pdf_diffuse = (1.0 - p_spec) * cosine_hemisphere_pdf(wi.z);
         let h = (wo + wi).normalize();
         let d = ggx_d(h, self.alpha);
         let (lambda_o, lambda_i) = (ggx_lambda(wo, self.alpha), ggx_lambda(wi, self.alpha));
         // Height-correlated masking-shadowing G2 for the value; the pdf of visible-normal
         // sampling uses the masking G1(wo) = 1 / (1 + Λo).
         let dg = d / ((1.0 + lambda_o + lambda_i) * 4.0 * wo.z * wi.z);
-        let mut f = diffuse + ((1.0 - m) * s * dg) * Vec3::ONE;
+        let c5 = schlick_weight(wo.dot(h));
+        let dielectric = self.f0 + (Vec3::splat(self.f90) - self.f0) * c5;
+        let mut f = diffuse + dg * (1.0 - m) * dielectric;
         if m > 0.0 {
-            let metal = self.base_color + (Vec3::ONE - self.base_color) * schlick(0.0, wo.dot(h));
-            f += m * dg * metal;
+            f += dg * m * (self.base_color + (Vec3::ONE - self.base_color) * c5);
         }
         let pdf_specular = d / ((1.0 + lambda_o) * 4.0 * wo.z);
         (f, pdf_diffuse + p_spec * pdf_specular)
@@ -136,7 +200,7 @@ impl Material {
         if wo.z <= 0.0 {
             return None;
         }
-        if u_lobe < self.specular_probability(wo.z) {
+        if self.has_specular() && u_lobe < self.lobe_weights(wo.z).1 {
             let h = sample_ggx_vndf(wo, self.alpha, u);
             let wi = 2.0 * wo.dot(h) * h - wo;
             (wi.z > 0.0).then_some(wi)
@@ -152,9 +216,83 @@ impl Material {
     }
 }
 
-fn schlick(f0: f32, cos: f32) -> f32 {
-    let c = (1.0 - cos.clamp(0.0, 1.0)).powi(5);
-    f0 + (1.0 - f0) * c
+/// Schlick's `(1 − cos)⁵`: `F = F0 + (F90 − F0)·(1 − cos)⁵`.
+fn schlick_weight(cos: f32) -> f32 {
+    (1.0 - cos.clamp(0.0, 1.0)).powi(5)
+}
+
+/// Cells of the albedo table along `√cos θo` and along perceptual roughness `√α`.
+const ALBEDO_COS_CELLS: usize = 32;
+const ALBEDO_ROUGHNESS_CELLS: usize = 24;
+/// Factor on the tabulated albedo covering its error relative to the true one (measured below
+/// 1.5e-3 against an independent quadrature, `tests::albedo_table_matches_…`).
+const ALBEDO_ROUND_UP: f32 = 1.003;
+/// Midpoint-rule points per axis of the visible-normal sample square, per table entry.
+const ALBEDO_QUADRATURE: usize = 64;
+
+/// `(A, B)` with `E(wo) = F0·A + F90·B`: the directional albedo of single-scattering GGX with
+/// Schlick's Fresnel (linear in F0 and F90), interpolated in a table computed once.
+pub fn ggx_albedo(cos_o: f32, alpha: f32) -> (f32, f32) {
+    static TABLE: OnceLock<Vec<[f32; 2]>> = OnceLock::new();
+    let table = TABLE.get_or_init(albedo_table);
+    let x = cos_o.clamp(0.0, 1.0).sqrt() * ALBEDO_COS_CELLS as f32;
+    let y = alpha.clamp(0.0, 1.0).sqrt() * ALBEDO_ROUGHNESS_CELLS as f32;
+    let (i, j) = (
+        (x as usize).min(ALBEDO_COS_CELLS - 1),
+        (y as usize).min(ALBEDO_ROUGHNESS_CELLS - 1),
+    );
+    let (tx, ty) = (x - i as f32, y - j as f32);
+    let at = |i: usize, j: usize| table[j * (ALBEDO_COS_CELLS + 1) + i];
+    let lerp =
+        |a: [f32; 2], b: [f32; 2], t: f32| [a[0] + (b[0] - a[0]) * t, a[1] + (b[1] - a[1]) * t];
+    let [a, b] = lerp(
+        lerp(at(i, j), at(i + 1, j), tx),
+        lerp(at(i, j + 1), at(i + 1, j + 1), tx),
+        ty,
+    );
+    (a, b)
+}
+
+/// The table behind [`ggx_albedo`]: rows of roughness, columns of `cos θo`, each entry the
+/// midpoint-rule integral of `F·G2/G1` over visible-normal samples (whose density makes
+/// `f·cos/pdf` exactly that weight).
+fn albedo_table() -> Vec<[f32; 2]> {
+    let n = ALBEDO_QUADRATURE;
+    let mut table = Vec::with_capacity((ALBEDO_COS_CELLS + 1) * (ALBEDO_ROUGHNESS_CELLS + 1));
+    for j in 0..=ALBEDO_ROUGHNESS_CELLS {
+        let r = j as f32 / ALBEDO_ROUGHNESS_CELLS as f32;
+        let alpha = (r * r).max(MIN_ALPHA);
+        for i in 0..=ALBEDO_COS_CELLS {
+            // Columns are uniform in √cos θo (finer towards grazing, where E changes fastest);
+            // the first is the limit at grazing incidence, approached from just above it.
+            let cos_o = (i as f32 / ALBEDO_COS_CELLS as f32).powi(2).max(1e-4);
+            let wo = Vec3::new((1.0 - cos_o * cos_o).sqrt(), 0.0, cos_o);
+            let lambda_o = ggx_lambda(wo, alpha);
+            let (mut a, mut b) = (0.0f64, 0.0f64);
+            for k in 0..n * n {
+                // `u.x = 1 − (1 − t)²` crowds the points towards the rim of the sampled disk
+                // (the far tail of normals, where wi meets the horizon); `2(1 − t)` is dx/dt.
+                let t = ((k % n) as f32 + 0.5) / n as f32;
+                let u = Vec2::new(
+                    1.0 - (1.0 - t) * (1.0 - t),
+                    ((k / n) as f32 + 0.5) / n as f32,
+                );
+                let h = sample_ggx_vndf(wo, alpha, u);
+                let wi = 2.0 * wo.dot(h) * h - wo;
+                if wi.z <= 0.0 {
+                    continue;
+                }
+                let weight =
+                    2.0 * (1.0 - t) * (1.0 + lambda_o) / (1.0 + lambda_o + ggx_lambda(wi, alpha));
+                let c5 = schlick_weight(wo.dot(h));
+                a += (weight * (1.0 - c5)) as f64;
+                b += (weight * c5) as f64;
+            }
+            let count = (n * n) as f64;
+            table.push([(a / count) as f32, (b / count) as f32]);
+        }
+    }
+    table
 }
 
 /// GGX normal distribution.
@@ -199,21 +337,304 @@ mod tests {
     use super::*;
     use crate::sampling::Rng;
 
+    fn desc(metallic: f32, roughness: f32, base: Vec3) -> MaterialDesc {
+        MaterialDesc {
+            metallic,
+            roughness,
+            ..MaterialDesc::diffuse("t", base)
+        }
+    }
+
+    /// Blender 3.4's export of Principled *Specular* 0: `specularColorFactor` [0, 0, 0], no
+    /// `specularFactor` (so 1), and the Principled IOR.
+    fn blender_specular_zero(base: Vec3) -> MaterialDesc {
+        MaterialDesc {
+            specular_color: Vec3::ZERO,
+            ior: 1.45,
+            ..desc(0.0, 0.5, base)
+        }
+    }
+
+    fn random_pair(rng: &mut Rng) -> (Vec3, Vec3) {
+        let wo = sample_cosine_hemisphere(rng.uniform2());
+        let wi = sample_cosine_hemisphere(rng.uniform2());
+        (wo, wi)
+    }
+
     #[test]
     fn sample_pdf_matches_eval_pdf() {
         let mut rng = Rng::new(1, 2);
-        for &(m, r) in &[(0.0, 1.0), (0.0, 0.2), (1.0, 0.3), (0.5, 0.05)] {
-            let mat = Material::from_desc(&MaterialDesc {
-                metallic: m,
-                roughness: r,
-                ..MaterialDesc::diffuse("t", Vec3::splat(0.7))
-            });
+        let mut configurations: Vec<MaterialDesc> =
+            [(0.0, 1.0), (0.0, 0.2), (1.0, 0.3), (0.5, 0.05)]
+                .iter()
+                .map(|&(m, r)| desc(m, r, Vec3::splat(0.7)))
+                .collect();
+        configurations.extend([
+            blender_specular_zero(Vec3::splat(0.7)),
+            MaterialDesc {
+                specular_factor: 0.3,
+                specular_color: Vec3::new(2.0, 0.5, 0.0),
+                ior: 1.2,
+                ..desc(0.2, 0.4, Vec3::new(0.9, 0.1, 0.3))
+            },
+            MaterialDesc {
+                ior: 0.0,
+                ..desc(0.0, 0.1, Vec3::ZERO)
+            },
+        ]);
+        for d in &configurations {
+            let mat = Material::from_desc(d);
+            let mut drawn = 0;
             for _ in 0..1000 {
                 let wo = sample_cosine_hemisphere(rng.uniform2());
                 if let Some(s) = mat.sample(wo, rng.uniform(), rng.uniform2()) {
+                    drawn += 1;
                     let p = mat.pdf(wo, s.wi);
                     assert!((p - s.pdf).abs() <= 1e-4 * p.max(1.0), "{p} vs {}", s.pdf);
                     assert!(s.f.is_finite() && s.pdf.is_finite());
+                    assert_eq!(s.f, mat.eval(wo, s.wi));
+                }
+            }
+            assert!(drawn > 900, "{d:?}: only {drawn} samples");
+        }
+    }
+
+    /// The pdf is a density: its integral over the hemisphere, by a midpoint rule in
+    /// (cos θi, φ), is 1 less what visible-normal sampling sends below the horizon.
+    #[test]
+    fn pdf_integrates_to_at_most_one() {
+        let n = 400;
+        for d in [
+            desc(0.0, 1.0, Vec3::splat(0.5)),
+            desc(0.0, 0.6, Vec3::splat(0.5)),
+            desc(1.0, 0.7, Vec3::splat(0.5)),
+        ] {
+            let mat = Material::from_desc(&d);
+            for cos_o in [1.0f32, 0.5, 0.1] {
+                let wo = Vec3::new((1.0 - cos_o * cos_o).sqrt(), 0.0, cos_o);
+                let mut total = 0.0f64;
+                for i in 0..n {
+                    let cos_i = (i as f32 + 0.5) / n as f32;
+                    let sin_i = (1.0 - cos_i * cos_i).sqrt();
+                    for j in 0..n {
+                        let phi = 2.0 * PI * (j as f32 + 0.5) / n as f32;
+                        let wi = Vec3::new(sin_i * phi.cos(), sin_i * phi.sin(), cos_i);
+                        total += mat.pdf(wo, wi) as f64;
+                    }
+                }
+                total *= 2.0 * PI as f64 / (n * n) as f64;
+                assert!(
+                    total <= 1.0 + 2e-3 && total > 0.8,
+                    "{d:?} cos {cos_o}: {total}"
+                );
+            }
+        }
+    }
+
+    /// Blender's Specular 0, a zero specular factor and ior = 1 all leave exactly Lambert: the
+    /// same value and pdf, bit for bit, at every pair of directions (grazing ones included).
+    #[test]
+    fn no_specular_layer_is_exactly_lambert() {
+        let base = Vec3::new(0.8, 0.5, 0.2);
+        let lambert = Material::lambertian(base);
+        let mut rng = Rng::new(4, 4);
+        for d in [
+            blender_specular_zero(base),
+            MaterialDesc {
+                specular_factor: 0.0,
+                ..desc(0.0, 0.2, base)
+            },
+            MaterialDesc {
+                ior: 1.0,
+                ..desc(0.0, 0.2, base)
+            },
+        ] {
+            let mat = Material::from_desc(&d);
+            assert_eq!((mat.f0, mat.f90), (Vec3::ZERO, 0.0), "{d:?}");
+            for _ in 0..1000 {
+                let (wo, wi) = random_pair(&mut rng);
+                assert_eq!(mat.eval_pdf(wo, wi), lambert.eval_pdf(wo, wi));
+            }
+            let grazing = Vec3::new(0.9999, 0.0, 0.0141).normalize();
+            assert_eq!(
+                mat.eval_pdf(grazing, grazing * Vec3::new(-1.0, 1.0, 1.0)),
+                lambert.eval_pdf(grazing, grazing * Vec3::new(-1.0, 1.0, 1.0))
+            );
+        }
+        // A nonzero F0 in any channel keeps the layer, with the spec's F90 = specularFactor.
+        let red = Material::from_desc(&MaterialDesc {
+            specular_color: Vec3::new(1.0, 0.0, 0.0),
+            specular_factor: 0.5,
+            ..desc(0.0, 0.2, base)
+        });
+        assert_eq!(red.f90, 0.5);
+        assert!((red.f0 - Vec3::new(0.02, 0.0, 0.0)).abs().max_element() < 1e-7);
+    }
+
+    #[test]
+    fn f0_follows_the_extension_texts() {
+        let m = |specular_factor, specular_color, ior| {
+            Material::from_desc(&MaterialDesc {
+                specular_factor,
+                specular_color,
+                ior,
+                ..desc(0.0, 0.5, Vec3::ONE)
+            })
+        };
+        // glTF's default: 0.04 from ior 1.5.
+        assert!(
+            (m(1.0, Vec3::ONE, 1.5).f0 - Vec3::splat(0.04))
+                .abs()
+                .max_element()
+                < 1e-7
+        );
+        // ior 0 is the "infinite" IOR: F0 = 1; the colour is clamped to 1 before the factor.
+        assert_eq!(m(0.5, Vec3::splat(3.0), 0.0).f0, Vec3::splat(0.5));
+        // Blender 3.4 exports Specular s as specularColorFactor 0.08·s / F0(ior).
+        let s = 0.7;
+        let color = Vec3::splat(0.08 * s / f0_from_ior(1.45));
+        assert!(
+            (m(1.0, color, 1.45).f0 - Vec3::splat(0.08 * s))
+                .abs()
+                .max_element()
+                < 1e-6
+        );
+    }
+
+    /// `(A, B)` by an independent quadrature: a midpoint rule over (cos θi, φ) of
+    /// `F·D·G2/(4 cos θo)` with the textbook GGX written out here in f64.
+    fn albedo_by_quadrature(cos_o: f64, alpha: f64, n: usize) -> (f64, f64) {
+        let a2 = alpha * alpha;
+        let lambda = |c: f64| {
+            let tan2 = (1.0 - c * c).max(0.0) / (c * c);
+            0.5 * ((1.0 + a2 * tan2).sqrt() - 1.0)
+        };
+        let wo = [(1.0 - cos_o * cos_o).sqrt(), 0.0, cos_o];
+        let (mut a, mut b) = (0.0, 0.0);
+        for i in 0..n {
+            let cos_i = (i as f64 + 0.5) / n as f64;
+            let sin_i = (1.0 - cos_i * cos_i).sqrt();
+            for j in 0..n {
+                // Symmetric in φ: integrate over [0, π] and double.
+                let phi = std::f64::consts::PI * (j as f64 + 0.5) / n as f64;
+                let wi = [sin_i * phi.cos(), sin_i * phi.sin(), cos_i];
+                let h = [wo[0] + wi[0], wo[1] + wi[1], wo[2] + wi[2]];
+                let len = (h[0] * h[0] + h[1] * h[1] + h[2] * h[2]).sqrt();
+                let (cos_h, wo_h) = (h[2] / len, (wo[0] * h[0] + wo[2] * h[2]) / len);
+                let t = cos_h * cos_h * (a2 - 1.0) + 1.0;
+                let d = a2 / (std::f64::consts::PI * t * t);
+                let g2 = 1.0 / (1.0 + lambda(cos_o) + lambda(cos_i));
+                // f·cos θi with the cosines cancelled: D·G2 / (4 cos θo).
+                let f_cos = d * g2 / (4.0 * cos_o);
+                let c5 = (1.0 - wo_h).powi(5);
+                a += f_cos * (1.0 - c5);
+                b += f_cos * c5;
+            }
+        }
+        let cell = 2.0 * std::f64::consts::PI / (n * n) as f64;
+        (a * cell, b * cell)
+    }
+
+    /// The largest difference allowed between the albedo table and the independent quadrature
+    /// (measured: under 8e-4, from interpolating between the table's rows of roughness).
+    const ALBEDO_TABLE_TOLERANCE: f64 = 1.5e-3;
+
+    #[test]
+    fn albedo_table_matches_an_independent_quadrature() {
+        let mut worst = 0.0f64;
+        for &roughness in &[0.3f32, 0.5, 0.77, 1.0] {
+            for &cos_o in &[0.05f32, 0.1, 0.3, 0.55, 0.8, 1.0] {
+                let alpha = roughness * roughness;
+                let (a, b) = ggx_albedo(cos_o, alpha);
+                let (qa, qb) = albedo_by_quadrature(cos_o as f64, alpha as f64, 600);
+                let error = (a as f64 - qa).abs().max((b as f64 - qb).abs());
+                worst = worst.max(error);
+                // The round-up covers the table's error for F = 1 and for glTF's default.
+                for (f0, f90) in [(1.0, 1.0), (0.04, 1.0)] {
+                    let table = (f0 * a + f90 * b) as f64;
+                    let truth = f0 as f64 * qa + f90 as f64 * qb;
+                    assert!(
+                        table * ALBEDO_ROUND_UP as f64 >= truth,
+                        "r {roughness} cos {cos_o} F0 {f0}: {table} below {truth}"
+                    );
+                }
+                assert!(
+                    error <= ALBEDO_TABLE_TOLERANCE,
+                    "r {roughness} cos {cos_o}: table ({a}, {b}), quadrature ({qa}, {qb})"
+                );
+            }
+        }
+        eprintln!("albedo table: worst difference {worst:.2e}");
+        // Where the lobe is too sharp for that quadrature, single scattering still loses
+        // energy: A + B (the albedo with F = 1) never exceeds 1.
+        for j in 0..=40 {
+            for i in 0..=40 {
+                let (a, b) = ggx_albedo(i as f32 / 40.0, (j as f32 / 40.0).powi(2));
+                assert!(
+                    a + b <= 1.0 + 1e-4 && a >= 0.0 && b >= 0.0,
+                    "{i} {j}: {a} + {b}"
+                );
+            }
+        }
+    }
+
+    fn mean_and_se(values: &[f64]) -> (f64, f64) {
+        let n = values.len() as f64;
+        let mean = values.iter().sum::<f64>() / n;
+        let var = values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0);
+        (mean, (var / n).sqrt())
+    }
+
+    /// Albedo `∫ f cos dωi` (red channel) estimated by sampling the BSDF, with its standard
+    /// error.
+    fn albedo(mat: &Material, wo: Vec3, rng: &mut Rng, n: usize) -> (f64, f64) {
+        let values: Vec<f64> = (0..n)
+            .map(|_| match mat.sample(wo, rng.uniform(), rng.uniform2()) {
+                Some(s) => (s.f.x * s.wi.z / s.pdf) as f64,
+                None => 0.0,
+            })
+            .collect();
+        mean_and_se(&values)
+    }
+
+    /// glTF's default layer (F0 = 0.04, F90 = 1) against Blender's Specular 0 on a grey base
+    /// ρ: the albedos differ by the layer's energy less what the diffuse gave up,
+    /// `(1 − ρ)·E(wo)`, where `E = 0.04·A + B` comes from the independent quadrature above.
+    /// Tolerance: 4 standard errors of the sampled difference plus what the diffuse gives up
+    /// beyond the true E (the table's error and its round-up, times ρ·(F0 + F90)).
+    #[test]
+    fn default_specular_differs_from_specular_zero_by_the_fresnel_energy() {
+        let rho = 0.5f32;
+        let mut rng = Rng::new(21, 8);
+        for roughness in [0.5f32, 1.0] {
+            let default = Material::from_desc(&desc(0.0, roughness, Vec3::splat(rho)));
+            let zero = Material::from_desc(&MaterialDesc {
+                roughness,
+                ..blender_specular_zero(Vec3::splat(rho))
+            });
+            // Normal incidence, and grazing (84°).
+            for cos_o in [1.0f32, 0.1] {
+                let wo = Vec3::new((1.0 - cos_o * cos_o).sqrt(), 0.0, cos_o);
+                let (with_layer, se) = albedo(&default, wo, &mut rng, 400_000);
+                let (without, se_zero) = albedo(&zero, wo, &mut rng, 1000);
+                // Lambert sampled by its own cosine: every sample is exactly ρ.
+                assert_eq!((without, se_zero), (rho as f64, 0.0));
+                let (a, b) =
+                    albedo_by_quadrature(cos_o as f64, (roughness * roughness) as f64, 600);
+                let energy = 0.04 * a + b;
+                let expected = (1.0 - rho as f64) * energy;
+                let measured = with_layer - without;
+                let table_error = ALBEDO_TABLE_TOLERANCE + (ALBEDO_ROUND_UP as f64 - 1.0);
+                let tolerance = 4.0 * se + rho as f64 * 1.04 * table_error;
+                assert!(
+                    (measured - expected).abs() <= tolerance,
+                    "r {roughness} cos {cos_o}: {measured} vs {expected} ± {tolerance}"
+                );
+                // The negative case: at grazing incidence the Fresnel energy is far from
+                // F0's, so a layer without Schlick's rise (E = 0.04·(A + B)) would fail.
+                if cos_o < 0.5 {
+                    let without_fresnel = (1.0 - rho as f64) * 0.04 * (a + b);
+                    assert!((measured - without_fresnel).abs() > 3.0 * tolerance);
                 }
             }
         }

@@ -144,6 +144,9 @@ fn assert_scenes_close(a: &SceneDesc, b: &SceneDesc) {
         assert!((m.roughness - n.roughness).abs() < EPS);
         assert!(close(m.emissive_factor, n.emissive_factor), "{}", m.name);
         assert!((m.emissive_strength - n.emissive_strength).abs() < EPS * m.emissive_strength);
+        assert_eq!(m.specular_factor, n.specular_factor, "{}", m.name);
+        assert_eq!(m.specular_color, n.specular_color, "{}", m.name);
+        assert_eq!(m.ior, n.ior, "{}", m.name);
         assert_eq!(m.double_sided, n.double_sided, "{}", m.name);
     }
     assert_eq!(a.meshes.len(), b.meshes.len());
@@ -814,6 +817,12 @@ fn triangle_doc(dir: &Path, stem: &str, positions: &[[f32; 3]], indices: &[u16])
 
 const TRIANGLE: [[f32; 3]; 3] = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
 
+/// Gives the triangle of `triangle_doc` a material "Paint" with these `extensions`.
+fn with_material(doc: &mut Value, extensions: Value) {
+    doc["materials"] = json!([{"name": "Paint", "extensions": extensions}]);
+    doc["meshes"][0]["primitives"][0]["material"] = json!(0);
+}
+
 #[test]
 fn sparse_accessors_substitute_values() {
     let dir = temp_dir("sparse");
@@ -990,6 +999,84 @@ fn broken_files_give_errors_naming_the_file_and_field() {
             &["extensionsRequired[0]", "KHR_draco_mesh_compression"],
         ),
         (
+            "ior_below_one.gltf",
+            edited(|d| with_material(d, json!({"KHR_materials_ior": {"ior": 0.5}}))),
+            &["material 0 \"Paint\"", "KHR_materials_ior.ior", "0.5"],
+        ),
+        (
+            "ior_not_a_number.gltf",
+            edited(|d| with_material(d, json!({"KHR_materials_ior": {"ior": "NaN"}}))),
+            &[
+                "material 0 \"Paint\"",
+                "KHR_materials_ior.ior",
+                "finite number",
+            ],
+        ),
+        (
+            "negative_specular.gltf",
+            edited(|d| {
+                with_material(
+                    d,
+                    json!({"KHR_materials_specular": {"specularFactor": -0.1}}),
+                )
+            }),
+            &["material 0 \"Paint\"", "specularFactor", "[0, 1]"],
+        ),
+        (
+            "specular_above_one.gltf",
+            edited(|d| with_material(d, json!({"KHR_materials_specular": {"specularFactor": 2}}))),
+            &["material 0 \"Paint\"", "specularFactor"],
+        ),
+        (
+            "negative_specular_color.gltf",
+            edited(|d| {
+                with_material(
+                    d,
+                    json!({"KHR_materials_specular": {"specularColorFactor": [1, -1, 0]}}),
+                )
+            }),
+            &["material 0 \"Paint\"", "specularColorFactor", "negative"],
+        ),
+        (
+            "short_specular_color.gltf",
+            edited(|d| {
+                with_material(
+                    d,
+                    json!({"KHR_materials_specular": {"specularColorFactor": [1]}}),
+                )
+            }),
+            &["material 0 \"Paint\"", "specularColorFactor", "3 numbers"],
+        ),
+        (
+            "specular_color_not_a_number.gltf",
+            edited(|d| {
+                with_material(
+                    d,
+                    json!({"KHR_materials_specular": {"specularColorFactor": [1, null, 0]}}),
+                )
+            }),
+            &[
+                "material 0 \"Paint\"",
+                "specularColorFactor",
+                "finite number",
+            ],
+        ),
+        (
+            "specular_texture_missing.gltf",
+            edited(|d| {
+                with_material(
+                    d,
+                    json!({"KHR_materials_specular": {"specularTexture": {"index": 4}}}),
+                )
+            }),
+            &["material 0 \"Paint\"", "specularTexture.index", "texture 4"],
+        ),
+        (
+            "specular_not_an_object.gltf",
+            edited(|d| with_material(d, json!({"KHR_materials_specular": 1}))),
+            &["material 0 \"Paint\"", "KHR_materials_specular", "object"],
+        ),
+        (
             "portal_alpha.gltf",
             edited(|d| {
                 d["nodes"][0]["extras"] =
@@ -1062,5 +1149,138 @@ fn export_rejects_what_it_could_not_read_back() {
         0,
         "no temporary files left"
     );
+    let _ = fs::remove_dir_all(&dir);
+}
+
+/// What Blender 3.4 writes for Principled *Specular* 0 (only `specularColorFactor`, no
+/// `specularFactor`, and its IOR), other specular layers, and none: each lands in the right
+/// fields, with glTF's defaults where absent, and without warnings since both are read.
+#[test]
+fn specular_and_ior_extensions_are_read() {
+    let dir = temp_dir("specular");
+    let mut doc = triangle_doc(&dir, "specular", &TRIANGLE, &[0, 1, 2]);
+    doc["extensionsUsed"] = json!(["KHR_materials_specular", "KHR_materials_ior"]);
+    doc["materials"] = json!([
+        {"name": "Specular 0", "extensions": {
+            "KHR_materials_specular": {"specularColorFactor": [0.0, 0.0, 0.0]},
+            "KHR_materials_ior": {"ior": 1.45}}},
+        {"name": "Tinted", "extensions": {
+            "KHR_materials_specular": {"specularFactor": 0.5, "specularColorFactor": [2.5, 0.5, 0.0]},
+            "KHR_materials_ior": {"ior": 0}}},
+        {"name": "Plain"}
+    ]);
+    doc["meshes"][0]["primitives"][0]["material"] = json!(0);
+    let path = dir.join("specular.gltf");
+    write_json(&path, &doc);
+    let scene = load_gltf(&path).unwrap();
+    let warnings = &scene.warnings;
+    assert!(warnings.is_empty(), "{warnings:?}");
+    let [zero, tinted, plain] = &scene.materials[..] else {
+        panic!("three materials");
+    };
+    assert_eq!(
+        (zero.specular_factor, zero.specular_color, zero.ior),
+        (1.0, Vec3::ZERO, 1.45)
+    );
+    assert_eq!(
+        (tinted.specular_factor, tinted.specular_color, tinted.ior),
+        (0.5, Vec3::new(2.5, 0.5, 0.0), 0.0)
+    );
+    assert_eq!(
+        (plain.specular_factor, plain.specular_color, plain.ior),
+        (1.0, Vec3::ONE, 1.5)
+    );
+    let _ = fs::remove_dir_all(&dir);
+}
+
+/// The specular layer's textures are checked to exist but not read yet: a warning names the
+/// file, the material and the texture; so does an extension the file uses but that is not read.
+#[test]
+fn unread_textures_and_extensions_warn() {
+    let dir = temp_dir("specular-texture");
+    let mut doc = triangle_doc(&dir, "textured", &TRIANGLE, &[0, 1, 2]);
+    doc["extensionsUsed"] = json!(["KHR_materials_specular", "KHR_materials_transmission"]);
+    doc["images"] = json!([{"uri": "spec.png"}]);
+    doc["textures"] = json!([{"source": 0}]);
+    with_material(
+        &mut doc,
+        json!({"KHR_materials_specular": {"specularColorTexture": {"index": 0}, "specularFactor": 0.7}}),
+    );
+    let path = dir.join("textured.gltf");
+    write_json(&path, &doc);
+    let scene = load_gltf(&path).unwrap();
+    let warnings = &scene.warnings;
+    assert_eq!(scene.materials[0].specular_factor, 0.7);
+    assert_eq!(warnings.len(), 2, "{warnings:?}");
+    let all = warnings.join("\n");
+    for word in [
+        "textured.gltf",
+        "material 0 \"Paint\"",
+        "specularColorTexture",
+        "KHR_materials_transmission",
+    ] {
+        assert!(all.contains(word), "no \"{word}\" in {all}");
+    }
+    assert!(
+        !all.contains("KHR_materials_specular,"),
+        "it is read: {all}"
+    );
+    let _ = fs::remove_dir_all(&dir);
+}
+
+/// Non-default specular layers and IORs are written as the two extensions (declared in
+/// `extensionsUsed`) and read back equal; defaults write neither.
+#[test]
+fn specular_and_ior_round_trip() {
+    let dir = temp_dir("specular-round-trip");
+    let path = dir.join("scene.glb");
+    let mut desc = sample_scene();
+    let plain = desc.clone();
+    desc.materials[0].specular_color = Vec3::ZERO;
+    desc.materials[0].ior = 1.45;
+    desc.materials[1].specular_factor = 0.25;
+    desc.materials[1].specular_color = Vec3::new(1.5, 0.1, 0.0);
+    export_glb(&desc, &path).unwrap();
+    assert_scenes_close(&load_gltf(&path).unwrap(), &desc);
+    let used = |path: &Path| -> Vec<String> {
+        let doc = gltf::Gltf::from_slice(&fs::read(path).unwrap()).unwrap();
+        doc.extensions_used().map(str::to_owned).collect()
+    };
+    let extensions = used(&path);
+    assert!(extensions.iter().any(|e| e == "KHR_materials_specular"));
+    assert!(extensions.iter().any(|e| e == "KHR_materials_ior"));
+    export_glb(&plain, &path).unwrap();
+    assert_scenes_close(&load_gltf(&path).unwrap(), &plain);
+    let extensions = used(&path);
+    // Default specular and IOR write neither extension (the sample scene's lamps declare theirs).
+    assert!(
+        extensions
+            .iter()
+            .all(|e| e == "KHR_materials_emissive_strength" || e == "KHR_lights_punctual"),
+        "{extensions:?}"
+    );
+    // What a file could not hold is refused, naming the file and the material.
+    for (field, edit) in [
+        (
+            "ior",
+            (|m: &mut MaterialDesc| m.ior = 0.9) as fn(&mut MaterialDesc),
+        ),
+        ("ior", |m| m.ior = f32::NAN),
+        ("specular factor", |m| m.specular_factor = 1.5),
+        ("negative", |m| m.specular_color = Vec3::new(0.0, -1.0, 0.0)),
+        ("not finite", |m| m.specular_factor = f32::NAN),
+    ] {
+        let mut bad = plain.clone();
+        edit(&mut bad.materials[0]);
+        let message = export_glb(&bad, &path).unwrap_err().to_string();
+        assert!(
+            message.contains("scene.glb") && message.contains("material 0 \"floor\""),
+            "{message}"
+        );
+        assert!(
+            message.contains(field) || field == "ior" && message.contains("finite"),
+            "{message}"
+        );
+    }
     let _ = fs::remove_dir_all(&dir);
 }

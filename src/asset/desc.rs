@@ -16,8 +16,21 @@ pub struct MaterialDesc {
     pub emissive_factor: Vec3,
     /// `KHR_materials_emissive_strength` (1 when absent).
     pub emissive_strength: f32,
+    /// `KHR_materials_specular` `specularFactor` in [0, 1] (1 when absent): the strength of the
+    /// dielectric specular layer, its reflectance at grazing angles.
+    pub specular_factor: f32,
+    /// `KHR_materials_specular` `specularColorFactor`, each ≥ 0 ([1, 1, 1] when absent): scales
+    /// the dielectric layer's reflectance at normal incidence (F0), not at grazing angles.
+    pub specular_color: Vec3,
+    /// `KHR_materials_ior` `ior` (1.5 when absent): 0 (infinite, F0 = 1) or ≥ 1.
+    pub ior: f32,
     pub double_sided: bool,
 }
+
+/// The glTF defaults of the specular layer: what a file without the extensions means.
+pub const DEFAULT_SPECULAR_FACTOR: f32 = 1.0;
+pub const DEFAULT_SPECULAR_COLOR: Vec3 = Vec3::ONE;
+pub const DEFAULT_IOR: f32 = 1.5;
 
 impl MaterialDesc {
     pub fn diffuse(name: &str, base_color: Vec3) -> Self {
@@ -28,6 +41,9 @@ impl MaterialDesc {
             roughness: 1.0,
             emissive_factor: Vec3::ZERO,
             emissive_strength: 1.0,
+            specular_factor: DEFAULT_SPECULAR_FACTOR,
+            specular_color: DEFAULT_SPECULAR_COLOR,
+            ior: DEFAULT_IOR,
             double_sided: true,
         }
     }
@@ -51,6 +67,17 @@ impl MaterialDesc {
 
     pub fn is_emissive(&self) -> bool {
         self.radiance().max_element() > 0.0
+    }
+
+    /// Whether the specular layer differs from glTF's default (so a file must say it).
+    pub fn has_specular_extension(&self) -> bool {
+        self.specular_factor != DEFAULT_SPECULAR_FACTOR
+            || self.specular_color != DEFAULT_SPECULAR_COLOR
+    }
+
+    /// Whether the IOR differs from glTF's default.
+    pub fn has_ior_extension(&self) -> bool {
+        self.ior != DEFAULT_IOR
     }
 }
 

@@ -75,7 +75,7 @@ impl Fnv1a {
 
 /// Bumped whenever the renderer changes what a converged image looks like, so that old cached
 /// references are not reused.
-const REFERENCE_FORMAT: u32 = 1;
+const REFERENCE_FORMAT: u32 = 2;
 
 /// A stable hash of what the reference image depends on: the triangles, materials, portals and
 /// camera as the renderer sees them, and the resolution and path depth.
@@ -95,8 +95,8 @@ pub fn scene_hash(scene: &Scene, image: ImageSpec) -> u64 {
         h.vec3(m.base_color);
         h.f32(m.metallic);
         h.f32(m.alpha);
-        h.f32(m.f0_dielectric);
-        h.f32(m.specular);
+        h.vec3(m.f0);
+        h.f32(m.f90);
         h.vec3(m.emission);
         h.u32(m.double_sided as u32);
     }

@@ -39,7 +39,10 @@ use json::mesh::{Mode, Semantic};
 use json::validation::{Checked, USize64, Validate};
 use serde_json::{Map, Value};
 
-use crate::asset::desc::{DEFAULT_PORTAL_ALPHA, MaterialDesc, MeshDesc, PortalDesc, SceneDesc};
+use crate::asset::desc::{
+    DEFAULT_IOR, DEFAULT_PORTAL_ALPHA, DEFAULT_SPECULAR_COLOR, DEFAULT_SPECULAR_FACTOR,
+    MaterialDesc, MeshDesc, PortalDesc, SceneDesc,
+};
 use crate::camera::Camera;
 
 /// The most vertices, or triangles, a file may hold (per accessor and over the whole scene).
@@ -51,6 +54,8 @@ pub const PORTAL_ALPHA_KEY: &str = "portal_light_probability";
 /// Camera-node `extras` key for the eye-to-target distance (glTF cameras have no target).
 const CAMERA_TARGET_DISTANCE_KEY: &str = "portalview_target_distance";
 const EMISSIVE_STRENGTH_EXTENSION: &str = "KHR_materials_emissive_strength";
+const SPECULAR_EXTENSION: &str = "KHR_materials_specular";
+const IOR_EXTENSION: &str = "KHR_materials_ior";
 /// Width over height of a perspective camera without `aspectRatio`.
 const DEFAULT_ASPECT: f32 = 4.0 / 3.0;
 
@@ -105,11 +110,15 @@ fn internal(file: &Path, message: impl ToString) -> GltfError {
     }
 }
 
-/// Reads a `.gltf` or `.glb` file's default scene (else its first) into world space.
+/// Reads a `.gltf` or `.glb` file's default scene (else its first) into world space. What the
+/// file uses that is not read (extensions, textures) is in the description's `warnings`, each
+/// naming the file and what is ignored.
 pub fn load_gltf(path: &Path) -> Result<SceneDesc, GltfError> {
     guarded(path, || {
         let source = read_source(path)?;
         let root = parse_document(path, source.json())?;
+        let mut warnings = unread_extensions(path, &root);
+        warnings.extend(unread_textures(path, &root));
         let buffers = load_buffers(path, &root, source.bin())?;
         let doc = Doc {
             file: path,
@@ -117,8 +126,8 @@ pub fn load_gltf(path: &Path) -> Result<SceneDesc, GltfError> {
             buffers: &buffers,
         };
         let visits = walk_scene(path, &root)?;
-        let mut desc = doc.scene(&visits)?;
-        desc.warnings = unread_features(path, &root);
+        let mut desc = doc.scene(&visits, &mut warnings)?;
+        desc.warnings = warnings;
         Ok(desc)
     })
 }

@@ -254,13 +254,18 @@ impl<'a> Doc<'a> {
     }
 
     /// Everything the scene holds: materials, world-space meshes, portals and the camera.
-    pub(super) fn scene(&self, visits: &[Visit]) -> Result<SceneDesc, GltfError> {
+    /// What it uses but is not read is added to `warnings`.
+    pub(super) fn scene(
+        &self,
+        visits: &[Visit],
+        warnings: &mut Vec<String>,
+    ) -> Result<SceneDesc, GltfError> {
         let mut materials = self
             .root
             .materials
             .iter()
             .enumerate()
-            .map(|(i, m)| material_desc(self.file, i, m))
+            .map(|(i, m)| material_desc(self.file, i, m, self.root.textures.len(), warnings))
             .collect::<Result<Vec<_>, _>>()?;
         let mut default_material = None;
         let mut meshes = Vec::new();
@@ -543,10 +548,14 @@ pub(super) fn default_material_desc() -> MaterialDesc {
     }
 }
 
+/// The glTF material `m` (index `index` among `textures` textures) as a description; what it
+/// uses but is not read yet (textures of the specular layer) is added to `warnings`.
 pub(super) fn material_desc(
     file: &Path,
     index: usize,
     m: &json::Material,
+    textures: usize,
+    warnings: &mut Vec<String>,
 ) -> Result<MaterialDesc, GltfError> {
     let at = label("material", index, m.name.as_deref());
     let pbr = &m.pbr_metallic_roughness;
@@ -555,9 +564,8 @@ pub(super) fn material_desc(
     let metallic = pbr.metallic_factor.0;
     let roughness = pbr.roughness_factor.0;
     let emissive_factor = Vec3::from_array(m.emissive_factor.0);
-    let emissive_strength = m
-        .extensions
-        .as_ref()
+    let extensions = m.extensions.as_ref();
+    let emissive_strength = extensions
         .and_then(|e| e.emissive_strength.as_ref())
         .map_or(1.0, |s| s.emissive_strength.0);
     let fields = [
@@ -583,6 +591,79 @@ pub(super) fn material_desc(
             "is not a finite (non-negative) number",
         ));
     }
+    let others = extensions.map(|e| &e.others);
+    let extension = |name: &str| -> Result<Option<&Map<String, Value>>, GltfError> {
+        match others.and_then(|o| o.get(name)) {
+            None => Ok(None),
+            Some(Value::Object(object)) => Ok(Some(object)),
+            Some(other) => Err(invalid(
+                file,
+                format!("{at}, extensions.{name}"),
+                format!("must be an object, found {other}"),
+            )),
+        }
+    };
+    let mut specular_factor = DEFAULT_SPECULAR_FACTOR;
+    let mut specular_color = DEFAULT_SPECULAR_COLOR;
+    if let Some(specular) = extension(SPECULAR_EXTENSION)? {
+        let field = |key: &str| format!("{at}, extensions.{SPECULAR_EXTENSION}.{key}");
+        if let Some(value) = specular.get("specularFactor") {
+            specular_factor = number(file, &field("specularFactor"), value)?;
+            if !(0.0..=1.0).contains(&specular_factor) {
+                return Err(invalid(
+                    file,
+                    field("specularFactor"),
+                    format!("must be in [0, 1], found {value}"),
+                ));
+            }
+        }
+        if let Some(value) = specular.get("specularColorFactor") {
+            let at = field("specularColorFactor");
+            let channels = match value.as_array() {
+                Some(items) if items.len() == 3 => items
+                    .iter()
+                    .map(|v| number(file, &at, v))
+                    .collect::<Result<Vec<f32>, _>>()?,
+                _ => {
+                    return Err(invalid(
+                        file,
+                        at,
+                        format!("must be an array of 3 numbers, found {value}"),
+                    ));
+                }
+            };
+            specular_color = Vec3::new(channels[0], channels[1], channels[2]);
+            if specular_color.min_element() < 0.0 {
+                return Err(invalid(
+                    file,
+                    at,
+                    format!("must not be negative, found {value}"),
+                ));
+            }
+        }
+        for key in ["specularTexture", "specularColorTexture"] {
+            if let Some(info) = specular.get(key) {
+                texture_index(file, &field(key), info, textures)?;
+                warnings.push(format!(
+                    "{}: {}: textures are not read yet; the factor alone is used",
+                    file.display(),
+                    field(key)
+                ));
+            }
+        }
+    }
+    let mut ior = DEFAULT_IOR;
+    if let Some(value) = extension(IOR_EXTENSION)?.and_then(|e| e.get("ior")) {
+        let at = format!("{at}, extensions.{IOR_EXTENSION}.ior");
+        ior = number(file, &at, value)?;
+        if !(ior == 0.0 || ior >= 1.0) {
+            return Err(invalid(
+                file,
+                at,
+                format!("must be 0 (infinite) or at least 1, found {value}"),
+            ));
+        }
+    }
     Ok(MaterialDesc {
         name: m
             .name
@@ -593,8 +674,40 @@ pub(super) fn material_desc(
         roughness,
         emissive_factor,
         emissive_strength,
+        specular_factor,
+        specular_color,
+        ior,
         double_sided: m.double_sided,
     })
+}
+
+/// A JSON number that is finite as an `f32`.
+fn number(file: &Path, at: &str, value: &Value) -> Result<f32, GltfError> {
+    match value.as_f64().map(|x| x as f32) {
+        Some(x) if x.is_finite() => Ok(x),
+        _ => Err(invalid(
+            file,
+            at,
+            format!("must be a finite number, found {value}"),
+        )),
+    }
+}
+
+/// The texture a `textureInfo` object names, checked to exist.
+fn texture_index(file: &Path, at: &str, info: &Value, textures: usize) -> Result<usize, GltfError> {
+    match info.get("index").and_then(Value::as_u64) {
+        Some(i) if (i as usize) < textures => Ok(i as usize),
+        Some(i) => Err(invalid(
+            file,
+            format!("{at}.index"),
+            format!("texture {i} does not exist (the file has {textures})"),
+        )),
+        None => Err(invalid(
+            file,
+            at,
+            format!("must be a textureInfo with an integer index, found {info}"),
+        )),
+    }
 }
 
 /// A node's `extras` if they are a JSON object.

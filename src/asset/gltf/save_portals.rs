@@ -12,7 +12,8 @@ pub(super) fn save_portals_inner(file: &Path, portals: &[PortalDesc]) -> Result<
         root: &root,
         buffers: &buffers,
     };
-    let current = doc.scene(&visits)?;
+    // Saving portals reports nothing about the rest of the file: loading it did.
+    let current = doc.scene(&visits, &mut Vec::new())?;
     let in_file: HashMap<usize, &PortalDesc> = current
         .portals
         .iter()

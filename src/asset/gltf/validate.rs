@@ -65,21 +65,55 @@ pub(super) fn parse_document(file: &Path, json_bytes: &[u8]) -> Result<json::Roo
     })
 }
 
-/// Whether a file that requires `extension` still loads correctly here: it only changes
-/// textures or material details that are not read, or it is understood (quantized attributes
-/// are read as normalised integers, emissive strength is read).
+/// The extensions that are read: emissive strength and the specular layer's factors and IOR
+/// change the materials, quantized attributes are read as normalised integers.
+pub(super) const READ_EXTENSIONS: [&str; 5] = [
+    EMISSIVE_STRENGTH_EXTENSION,
+    SPECULAR_EXTENSION,
+    IOR_EXTENSION,
+    "KHR_mesh_quantization",
+    "KHR_lights_punctual",
+];
+
+/// Whether a file that requires `extension` still loads correctly here: it is read, or it only
+/// changes textures, material details or lights that are not read (so the file still loads,
+/// with a warning from [`unread_extensions`]).
 pub(super) fn can_ignore_or_read(extension: &str) -> bool {
-    extension.starts_with("KHR_materials_")
+    READ_EXTENSIONS.contains(&extension)
+        || extension.starts_with("KHR_materials_")
         || matches!(
             extension,
-            "KHR_mesh_quantization"
-                | "KHR_texture_transform"
+            "KHR_texture_transform"
                 | "KHR_texture_basisu"
                 | "EXT_texture_webp"
                 | "EXT_texture_avif"
                 | "MSFT_texture_dds"
                 | "KHR_lights_punctual"
         )
+}
+
+/// One warning naming the file's `extensionsUsed` that are not read (their effect is ignored),
+/// if any: unread extensions are never silent.
+pub(super) fn unread_extensions(file: &Path, root: &json::Root) -> Vec<String> {
+    let unread: Vec<&str> = root
+        .extensions_used
+        .iter()
+        .map(String::as_str)
+        .filter(|e| !READ_EXTENSIONS.contains(e))
+        .collect();
+    if unread.is_empty() {
+        return Vec::new();
+    }
+    vec![format!(
+        "{}: extensionsUsed: {} not read; the file renders as if {} absent",
+        file.display(),
+        unread.join(", "),
+        if unread.len() == 1 {
+            "it were"
+        } else {
+            "they were"
+        }
+    )]
 }
 
 /// Counts vertices and triangles over the whole scene, so that instancing a mesh many times
@@ -188,42 +222,38 @@ pub(super) fn check_portal(file: &Path, portal: &PortalDesc) -> Result<(), GltfE
 }
 
 pub(super) fn check_material(file: &Path, k: usize, m: &MaterialDesc) -> Result<(), GltfError> {
+    let at = format!("material {k} \"{}\"", m.name);
     let finite = m.base_color.is_finite()
         && m.metallic.is_finite()
         && m.roughness.is_finite()
         && m.emissive_factor.is_finite()
-        && m.emissive_strength.is_finite();
-    if !finite || m.emissive_factor.min_element() < 0.0 || m.emissive_strength < 0.0 {
+        && m.emissive_strength.is_finite()
+        && m.specular_factor.is_finite()
+        && m.specular_color.is_finite()
+        && m.ior.is_finite();
+    let negative = m.emissive_factor.min_element() < 0.0
+        || m.emissive_strength < 0.0
+        || m.specular_color.min_element() < 0.0;
+    if !finite || negative {
         return Err(invalid(
             file,
-            format!("material {k} \"{}\"", m.name),
+            at,
             "has a factor that is negative or not finite",
         ));
+    }
+    if !(0.0..=1.0).contains(&m.specular_factor) {
+        return Err(invalid(file, at, "specular factor is not in [0, 1]"));
+    }
+    if !(m.ior == 0.0 || m.ior >= 1.0) {
+        return Err(invalid(file, at, "ior is neither 0 nor at least 1"));
     }
     Ok(())
 }
 
-/// Extensions whose content is read (the others may only be ignored, with a warning).
-const READ_EXTENSIONS: [&str; 3] = [
-    "KHR_materials_emissive_strength",
-    "KHR_lights_punctual",
-    "KHR_mesh_quantization",
-];
-
-/// A warning, naming the file, for every extension the file uses that is not read and every
-/// material texture (textures are not read: the factors alone are used).
-pub(super) fn unread_features(file: &Path, root: &json::Root) -> Vec<String> {
-    let mut warnings: Vec<String> = root
-        .extensions_used
-        .iter()
-        .filter(|e| !READ_EXTENSIONS.contains(&e.as_str()))
-        .map(|e| {
-            format!(
-                "{}: extension {e} is not read; what it adds is ignored",
-                file.display()
-            )
-        })
-        .collect();
+/// A warning, naming the file and the material, for every material that has core textures
+/// (textures are not read: the factors alone are used).
+pub(super) fn unread_textures(file: &Path, root: &json::Root) -> Vec<String> {
+    let mut warnings = Vec::new();
     for (i, m) in root.materials.iter().enumerate() {
         let pbr = &m.pbr_metallic_roughness;
         let textures = [

@@ -210,7 +210,9 @@ impl<'f> GeometryWriter<'f> {
     }
 }
 
-pub(super) fn export_material(m: &MaterialDesc) -> (json::Material, bool) {
+/// `m` as a glTF material, and the material extensions it uses (each written only when its
+/// values differ from glTF's defaults).
+pub(super) fn export_material(m: &MaterialDesc) -> (json::Material, Vec<&'static str>) {
     // glTF keeps emissiveFactor in [0, 1]: fold any excess into the strength (same radiance).
     let peak = m.emissive_factor.max_element();
     let (factor, strength) = if peak > 1.0 {
@@ -218,13 +220,34 @@ pub(super) fn export_material(m: &MaterialDesc) -> (json::Material, bool) {
     } else {
         (m.emissive_factor, m.emissive_strength)
     };
-    let uses_strength = strength != 1.0;
-    let extensions = uses_strength.then(|| json::extensions::material::Material {
-        emissive_strength: Some(json::extensions::material::EmissiveStrength {
+    let mut used = Vec::new();
+    let mut extensions = json::extensions::material::Material::default();
+    if strength != 1.0 {
+        used.push(EMISSIVE_STRENGTH_EXTENSION);
+        extensions.emissive_strength = Some(json::extensions::material::EmissiveStrength {
             emissive_strength: json::extensions::material::EmissiveStrengthFactor(strength),
-        }),
-        ..Default::default()
-    });
+        });
+    }
+    if m.has_specular_extension() {
+        used.push(SPECULAR_EXTENSION);
+        let mut specular = Map::new();
+        specular.insert("specularFactor".to_owned(), json_f32(m.specular_factor));
+        specular.insert(
+            "specularColorFactor".to_owned(),
+            Value::Array(m.specular_color.to_array().map(json_f32).to_vec()),
+        );
+        extensions
+            .others
+            .insert(SPECULAR_EXTENSION.to_owned(), Value::Object(specular));
+    }
+    if m.has_ior_extension() {
+        used.push(IOR_EXTENSION);
+        let mut ior = Map::new();
+        ior.insert("ior".to_owned(), json_f32(m.ior));
+        extensions
+            .others
+            .insert(IOR_EXTENSION.to_owned(), Value::Object(ior));
+    }
     let material = json::Material {
         name: Some(m.name.clone()),
         pbr_metallic_roughness: json::material::PbrMetallicRoughness {
@@ -237,10 +260,10 @@ pub(super) fn export_material(m: &MaterialDesc) -> (json::Material, bool) {
         },
         emissive_factor: json::material::EmissiveFactor(factor.to_array()),
         double_sided: m.double_sided,
-        extensions,
+        extensions: (!used.is_empty()).then_some(extensions),
         ..Default::default()
     };
-    (material, uses_strength)
+    (material, used)
 }
 
 /// The camera node's world matrix (looking down its −Z, +Y up) and the target distance.
@@ -287,10 +310,14 @@ pub(super) fn export_document(
     }
     let mut root = json::Root::default();
     root.asset.generator = Some("portalview".to_owned());
-    let mut uses_strength = false;
+    let mut extensions_used: Vec<&str> = Vec::new();
     for m in &desc.materials {
-        let (material, strength) = export_material(m);
-        uses_strength |= strength;
+        let (material, used) = export_material(m);
+        for extension in used {
+            if !extensions_used.contains(&extension) {
+                extensions_used.push(extension);
+            }
+        }
         root.materials.push(material);
     }
     let mut geometry = GeometryWriter::after(file, &root);
@@ -379,10 +406,9 @@ pub(super) fn export_document(
     root.buffer_views = views;
     root.accessors = accessors;
     root.meshes = meshes;
-    if uses_strength {
-        root.extensions_used
-            .push(EMISSIVE_STRENGTH_EXTENSION.to_owned());
-    }
+    // Appended: lamps declared theirs already.
+    root.extensions_used
+        .extend(extensions_used.into_iter().map(str::to_owned));
     Ok((root, bin))
 }
 
