@@ -14,7 +14,7 @@ use portalview::render::stats::Stats;
 use portalview::render::{Tiles, render, render_pass, render_tile};
 use portalview::sampling::Rng;
 use portalview::scene::Scene;
-use portalview::scene::bvh::Bvh;
+use portalview::scene::bvh::{Bvh, BvhError};
 
 /// Brute-force closest hit over all triangles (Möller–Trumbore in f64).
 fn brute_force(tris: &[[Vec3; 3]], o: Vec3, d: Vec3) -> Option<(f32, usize)> {
@@ -61,7 +61,7 @@ fn bvh_matches_brute_force_on_random_rays() {
     tris.push([Vec3::ONE; 3]);
     tris.push([Vec3::ZERO, Vec3::X, 2.0 * Vec3::X]);
     tris.push([Vec3::ZERO, Vec3::new(1e-9, 0.0, 0.0), Vec3::Y]);
-    let bvh = Bvh::build(&tris);
+    let bvh = Bvh::build(&tris).unwrap();
     let mut agree = 0;
     for _ in 0..4000 {
         let o = random_point(&mut rng, 8.0);
@@ -104,7 +104,7 @@ fn bvh_matches_brute_force_on_random_rays() {
 
 #[test]
 fn bvh_handles_empty_scenes_and_rays_along_edges() {
-    let empty = Bvh::build(&[]);
+    let empty = Bvh::build(&[]).unwrap();
     assert!(
         empty
             .closest_hit(Vec3::ZERO, Vec3::X, 0.0, f32::INFINITY)
@@ -114,11 +114,38 @@ fn bvh_handles_empty_scenes_and_rays_along_edges() {
     // A quad split along its diagonal: a ray straight down the diagonal must hit exactly once,
     // and a ray lying in the quad's plane along an edge must not report a bogus hit distance.
     let (a, b, c, d) = (Vec3::ZERO, Vec3::X, Vec3::new(1.0, 0.0, 1.0), Vec3::Z);
-    let bvh = Bvh::build(&[[a, b, c], [a, c, d]]);
+    let bvh = Bvh::build(&[[a, b, c], [a, c, d]]).unwrap();
     let hit = bvh.closest_hit(Vec3::new(0.5, 1.0, 0.5), -Vec3::Y, 0.0, f32::INFINITY);
     assert!(hit.is_some_and(|h| (h.t - 1.0).abs() < 1e-5), "{hit:?}");
     let along = bvh.closest_hit(Vec3::new(-1.0, 0.0, 0.0), Vec3::X, 0.0, f32::INFINITY);
     assert!(along.is_none_or(|h| h.t.is_finite() && h.t >= 0.0));
+}
+
+#[test]
+fn bvh_leaves_out_zero_area_triangles_and_refuses_piles_of_coincident_ones() {
+    // A thousand copies of one triangle made obvhs build a chain 999 levels deep (its traversal
+    // stack holds 32), in time quadratic in their number.
+    let triangle = [Vec3::ZERO, Vec3::X, Vec3::Y];
+    assert!(matches!(
+        Bvh::build(&vec![triangle; 1000]),
+        Err(BvhError::SharedBounds { count: 65 })
+    ));
+    assert!(Bvh::build(&vec![triangle; 64]).is_ok());
+    // Collapsed triangles (a thousand at one point gave a tree 998 levels deep) are left out;
+    // hits still name triangles by their index in the input.
+    let mut triangles = vec![[Vec3::ZERO; 3]; 1000];
+    triangles.push([
+        Vec3::new(-1.0, -1.0, 1.0),
+        Vec3::new(1.0, -1.0, 1.0),
+        Vec3::new(0.0, 1.0, 1.0),
+    ]);
+    let bvh = Bvh::build(&triangles).unwrap();
+    assert_eq!(bvh.triangle_count(), 1);
+    let hit = bvh.closest_hit(Vec3::ZERO, Vec3::Z, 0.0, f32::INFINITY);
+    assert!(
+        hit.is_some_and(|h| h.triangle == 1000 && (h.t - 1.0).abs() < 1e-5),
+        "{hit:?}"
+    );
 }
 
 /// Lambert's formula against the renderer, for tilted lights wholly above the tangent plane.

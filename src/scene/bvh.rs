@@ -4,11 +4,13 @@
 use glam::{Vec2, Vec3, Vec3A};
 use obvhs::{
     BvhBuildParams,
-    cwbvh::{CwBvh, builder::build_cwbvh_from_tris},
+    bvh2::{Bvh2, reinsertion::ReinsertionOptimizer},
+    cwbvh::{CwBvh, bvh2_to_cwbvh::bvh2_to_cwbvh},
+    ploc::PlocBuilder,
     ray::{Ray, RayHit},
     triangle::Triangle,
 };
-use std::time::Duration;
+use std::collections::HashMap;
 
 /// A triangle laid out for intersection (obvhs's `RtTriangle` layout), with a Möller–Trumbore
 /// test whose inside check accepts -0.0: obvhs's sign-bit test rejects it, so a ray exactly on
@@ -105,40 +107,141 @@ pub struct Bvh {
     scene_index: Vec<u32>,
 }
 
+/// Why triangles cannot be put in a BVH that obvhs builds in reasonable time and traverses
+/// correctly.
+#[derive(Debug, thiserror::Error)]
+pub enum BvhError {
+    /// Triangles with one bounding box make obvhs's PLOC build quadratic in time and its tree a
+    /// chain (a thousand copies of one triangle give a tree 999 levels deep).
+    #[error(
+        "{count} triangles share one bounding box (at most {MAX_SHARED_BOUNDS} may): duplicated \
+         geometry that the BVH cannot be built over"
+    )]
+    SharedBounds { count: usize },
+    /// The tree is deeper than obvhs's fixed traversal stack, which would silently skip nodes.
+    #[error(
+        "the geometry is too degenerate for the BVH: its tree is {depth} levels deep (at most \
+         {limit})"
+    )]
+    TooDeep { depth: u32, limit: u32 },
+}
+
+/// The most triangles that may share one bounding box (two coincident faces of opposite
+/// winding, or a few duplicated objects, share theirs).
+pub const MAX_SHARED_BOUNDS: usize = 64;
+/// The deepest binary tree converted to a CWBVH (the conversion recurses once per level).
+const MAX_BVH2_DEPTH: u32 = 256;
+/// obvhs's CWBVH traversal stack holds 32 entries; a tree as deep would overflow it.
+const MAX_CWBVH_DEPTH: u32 = 31;
+
+/// Levels below the root of a binary tree's deepest node.
+fn bvh2_depth(bvh2: &Bvh2) -> u32 {
+    let mut deepest = 0;
+    let mut stack = vec![(0usize, 0u32)];
+    while let Some((i, depth)) = stack.pop() {
+        deepest = deepest.max(depth);
+        if let Some(node) = bvh2.nodes.get(i).filter(|n| !n.is_leaf()) {
+            let first = node.first_index as usize;
+            stack.extend([(first, depth + 1), (first + 1, depth + 1)]);
+        }
+    }
+    deepest
+}
+
+/// Levels below the root of a CWBVH's deepest interior node.
+fn cwbvh_depth(cwbvh: &CwBvh) -> u32 {
+    let mut deepest = 0;
+    let mut stack = vec![(0usize, 0u32)];
+    while let Some((i, depth)) = stack.pop() {
+        deepest = deepest.max(depth);
+        let Some(node) = cwbvh.nodes.get(i) else {
+            continue;
+        };
+        for child in 0..8 {
+            if !node.is_child_empty(child) && !node.is_leaf(child) {
+                stack.push((node.child_node_index(child) as usize, depth + 1));
+            }
+        }
+    }
+    deepest
+}
+
 impl Bvh {
-    pub fn build(triangles: &[[Vec3; 3]]) -> Self {
-        let tris: Vec<Triangle> = triangles
+    /// A BVH over the triangles that have an area (the others can never be hit); triangle
+    /// numbers in hits are indices into `triangles`.
+    ///
+    /// The steps are obvhs's `build_cwbvh_from_tris` with the medium preset, without its debug
+    /// validation (which panics on a deep tree), and with the depth checked before the
+    /// recursive conversion and after it.
+    pub fn build(triangles: &[[Vec3; 3]]) -> Result<Self, BvhError> {
+        let (tris, kept): (Vec<Triangle>, Vec<u32>) = triangles
             .iter()
-            .map(|t| Triangle {
-                v0: t[0].into(),
-                v1: t[1].into(),
-                v2: t[2].into(),
+            .enumerate()
+            .filter(|(_, [a, b, c])| (*b - *a).cross(*c - *a) != Vec3::ZERO)
+            .map(|(i, t)| {
+                let triangle = Triangle {
+                    v0: t[0].into(),
+                    v1: t[1].into(),
+                    v2: t[2].into(),
+                };
+                (triangle, i as u32)
             })
-            .collect();
+            .unzip();
         if tris.is_empty() {
-            return Bvh {
+            return Ok(Bvh {
                 cwbvh: None,
                 triangles: Vec::new(),
                 scene_index: Vec::new(),
-            };
+            });
         }
-        let mut cwbvh = build_cwbvh_from_tris(
+        let mut sharing: HashMap<[u32; 6], usize> = HashMap::new();
+        for t in &tris {
+            let bounds = t.aabb();
+            let (lo, hi) = (Vec3::from(bounds.min), Vec3::from(bounds.max));
+            let key = [lo.x, lo.y, lo.z, hi.x, hi.y, hi.z].map(f32::to_bits);
+            let count = sharing.entry(key).or_default();
+            *count += 1;
+            if *count > MAX_SHARED_BOUNDS {
+                return Err(BvhError::SharedBounds { count: *count });
+            }
+        }
+        let params = BvhBuildParams::medium_build();
+        let mut bvh2 = PlocBuilder::with_capacity(tris.len()).build(
+            params.ploc_search_distance,
             &tris,
-            BvhBuildParams::medium_build(),
-            &mut Duration::default(),
+            (0..tris.len() as u32).collect(),
+            params.sort_precision,
+            params.search_depth_threshold,
         );
-        let scene_index = std::mem::take(&mut cwbvh.primitive_indices);
-        let triangles = scene_index
+        ReinsertionOptimizer::default().run(&mut bvh2, params.reinsertion_batch_ratio, None);
+        let depth = bvh2_depth(&bvh2);
+        if depth > MAX_BVH2_DEPTH {
+            return Err(BvhError::TooDeep {
+                depth,
+                limit: MAX_BVH2_DEPTH,
+            });
+        }
+        let mut cwbvh = bvh2_to_cwbvh(&bvh2, params.max_prims_per_leaf.clamp(1, 3), true, false);
+        let depth = cwbvh_depth(&cwbvh);
+        if depth > MAX_CWBVH_DEPTH {
+            return Err(BvhError::TooDeep {
+                depth,
+                limit: MAX_CWBVH_DEPTH,
+            });
+        }
+        let order = std::mem::take(&mut cwbvh.primitive_indices);
+        let triangles = order
             .iter()
             .map(|&i| RtTri::new(&tris[i as usize]))
             .collect();
+        let scene_index = order.iter().map(|&i| kept[i as usize]).collect();
         // After reordering, BVH primitive i is triangle i of `triangles`.
-        cwbvh.primitive_indices = (0..scene_index.len() as u32).collect();
-        Bvh {
+        cwbvh.primitive_indices = (0..order.len() as u32).collect();
+        Ok(Bvh {
             cwbvh: Some(cwbvh),
             triangles,
             scene_index,
-        }
+        })
     }
 
     /// The closest hit of `origin + t·dir` with `t` in `(tmin, tmax)`.

@@ -45,6 +45,8 @@ pub enum SceneError {
         index: u32,
         position: Vec3,
     },
+    #[error("{file}: {error}")]
+    Bvh { file: String, error: bvh::BvhError },
     #[error("unknown built-in scene '{0}' (built-ins: {names})", names = builtin::NAMES.join(", "))]
     UnknownBuiltin(String),
 }
@@ -200,7 +202,10 @@ impl Scene {
         let lamps = desc.lamps.iter().map(|l| Lamp::new(l, radius)).collect();
         let corners: Vec<[Vec3; 3]> = triangles.iter().map(|t| t.p).collect();
         let geometry = Arc::new(Geometry {
-            bvh: Bvh::build(&corners),
+            bvh: Bvh::build(&corners).map_err(|error| SceneError::Bvh {
+                file: file.to_owned(),
+                error,
+            })?,
             triangles,
             materials,
             lights,
