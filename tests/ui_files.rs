@@ -203,3 +203,45 @@ fn a_first_scene_that_fails_falls_back_to_the_lampshade_with_its_error() {
     assert!(h.query_by_label_contains("first.gltf").is_some());
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn an_unread_extension_is_a_warning_in_the_side_panel() {
+    let _serial = serial();
+    let dir = temp_dir("unread");
+    // One triangle, its three positions (36 bytes) in a data URI, and an extension nobody reads.
+    let positions: Vec<u8> = [0f32, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0]
+        .iter()
+        .flat_map(|v| v.to_le_bytes())
+        .collect();
+    let doc = serde_json::json!({
+        "asset": {"version": "2.0"},
+        "extensionsUsed": ["EXT_made_up_for_this_test"],
+        "scene": 0,
+        "scenes": [{"nodes": [0]}],
+        "nodes": [{"name": "Triangle", "mesh": 0}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}],
+        "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
+                       "min": [0.0, 0.0, 0.0], "max": [1.0, 1.0, 0.0]}],
+        "bufferViews": [{"buffer": 0, "byteLength": 36}],
+        "buffers": [{"byteLength": 36, "uri": format!(
+            "data:application/octet-stream;base64,{}", base64::encode(&positions))}]
+    });
+    let path = dir.join("made-up.gltf");
+    std::fs::write(&path, serde_json::to_vec(&doc).unwrap()).unwrap();
+    let mut h = harness_with(&path.display().to_string(), |_| {});
+    assert!(
+        shows_file(h.state(), &path),
+        "the file loads despite the extension"
+    );
+    let message = h.state().message().unwrap_or_default().to_owned();
+    assert!(
+        message.contains("made-up.gltf") && message.contains("EXT_made_up_for_this_test"),
+        "{message}"
+    );
+    h.run_steps(2);
+    assert!(
+        h.query_by_label_contains("EXT_made_up_for_this_test")
+            .is_some()
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -310,8 +310,11 @@ impl PortalViewApp {
         match result {
             Ok(Done::Opened { name, scene }) => {
                 // What the file holds that is not read is said, not dropped in silence.
+                // (Kept apart from an earlier error, such as the one a fallback scene follows.)
                 let warnings = &scene.desc.warnings;
-                self.message = (!warnings.is_empty()).then(|| warnings.join("\n"));
+                if !warnings.is_empty() {
+                    self.message = Some(warnings.join("\n"));
+                }
                 self.show_scene(scene, name);
                 self.restart();
             }
