@@ -7,6 +7,7 @@ use egui_plot::{Corner, GridMark, HLine, HoverPosition, Legend, Line, LineStyle,
 use super::{CompareView, strategy_colour};
 use crate::compare::ConvergencePoint;
 use crate::compare::report::{sci, tick_label};
+use crate::light::Strategy;
 
 impl CompareView {
     pub(super) fn plots(&self, ui: &mut Ui) {
@@ -72,10 +73,18 @@ impl CompareView {
                         .filter(|p| p.seconds > 0.0 && value(p) > 0.0)
                         .map(|p| [p.seconds.log10(), value(p).log10()])
                         .collect();
+                    // Antishadow often equals another strategy exactly (projection in the
+                    // antipenumbra, portal or light elsewhere): dashed, so that both show.
+                    let style = if run.strategy == Strategy::Antishadow {
+                        LineStyle::dashed_dense()
+                    } else {
+                        LineStyle::Solid
+                    };
                     plot_ui.line(
                         Line::new(run.strategy.name(), points)
                             .color(strategy_colour(run.strategy))
-                            .width(2.0),
+                            .width(2.0)
+                            .style(style),
                     );
                 }
                 if let Some(f) = floor.filter(|f| *f > 0.0) {
