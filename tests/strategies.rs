@@ -13,7 +13,7 @@ use glam::{Vec2, Vec3};
 use portalview::asset::builtin;
 use portalview::light::antishadow::{Region, classify_brute_force};
 use portalview::light::estimator::{
-    LightContext, LightSampler, portal_pdf, projected_light, term_pdf,
+    LightContext, LightSampler, PickedLight, portal_pdf, projected_light, term_pdf,
 };
 use portalview::light::portal::Portal;
 use portalview::light::{Strategy, Technique};
@@ -563,7 +563,10 @@ fn two_lights_picked_by_power_pass_chi_square() {
             let mut rng = Rng::new(9, 10);
             let samples: Vec<Vec3> = (0..20_000)
                 .filter_map(|_| {
-                    let (light, _) = sampler.pick_light(rng.uniform())?;
+                    // The scene has no lamps: every pick is an area light.
+                    let (PickedLight::Area(light), _) = sampler.pick(rng.uniform())? else {
+                        panic!("a lamp picked in a scene without lamps");
+                    };
                     sampler.sample(&scene, &contexts[light], rng.uniform(), rng.uniform2())
                 })
                 .map(|s| s.wi)

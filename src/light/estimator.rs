@@ -154,15 +154,6 @@ impl LightSampler {
         Some((picked, p))
     }
 
-    /// Picks a light by power: the area light's index and probability, `None` when a lamp
-    /// is picked or there is nothing to pick (for scenes without lamps, where it is [`Self::pick`]).
-    pub fn pick_light(&self, u: f32) -> Option<(usize, f32)> {
-        match self.pick(u)? {
-            (PickedLight::Area(i), p) => Some((i, p)),
-            (PickedLight::Lamp(_), _) => None,
-        }
-    }
-
     /// The probability of picking area light `light`.
     pub fn light_probability(&self, light: usize) -> f32 {
         self.by_power.pmf(light)
@@ -426,11 +417,7 @@ pub fn portal_pdf(portal: &Portal, x: Vec3, wi: Vec3) -> f32 {
     if !(t > 0.0 && t.is_finite()) {
         return 0.0;
     }
-    let reach = vertices
-        .iter()
-        .map(|v| v.as_dvec3().distance(v0))
-        .fold(0.0, f64::max);
-    let slack = PORTAL_EDGE_SLACK * (t + reach);
+    let slack = PORTAL_EDGE_SLACK * (t + portal.reach);
     // With counter-clockwise vertices around n, `(a − x) × (b − a)` has `sign(height) · w`
     // on its positive side for w through the portal; `t · m̂ · w` is the hit's distance to
     // the plane through x and the edge.

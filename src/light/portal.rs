@@ -50,6 +50,9 @@ pub struct Portal {
     /// The light polygon, its normal pointing towards the portal's side.
     pub light_polygon: ConvexPolygon,
     pub planes: AntishadowPlanes,
+    /// The largest distance of a portal vertex from its first: scales the slack of the
+    /// portal pdf's inside test (fixed per portal, so not recomputed per evaluation).
+    pub reach: f64,
 }
 
 impl Portal {
@@ -91,7 +94,14 @@ impl Portal {
                 error,
             }
         })?;
+        let v0 = polygon.vertices()[0].as_dvec3();
+        let reach = polygon
+            .vertices()
+            .iter()
+            .map(|v| v.as_dvec3().distance(v0))
+            .fold(0.0, f64::max);
         Ok(Portal {
+            reach,
             name: portal,
             desc_index,
             light,
