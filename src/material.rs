@@ -150,16 +150,6 @@ impl Material {
         self.metallic > 0.0 || self.f90 > 0.0 || self.f0.max_element() > 0.0
     }
 
-    /// BSDF value `f(wo, wi)` (without the cosine).
-    pub fn eval(&self, wo: Vec3, wi: Vec3) -> Vec3 {
-        self.eval_pdf(wo, wi).0
-    }
-
-    /// Solid-angle pdf of `sample` drawing `wi`.
-    pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
-        self.eval_pdf(wo, wi).1
-    }
-
     /// `f(wo, wi)` and the pdf of `sample` drawing `wi`, sharing the microfacet terms.
     #[inline]
     pub fn eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
@@ -389,10 +379,10 @@ mod tests {
                 let wo = sample_cosine_hemisphere(rng.uniform2());
                 if let Some(s) = mat.sample(wo, rng.uniform(), rng.uniform2()) {
                     drawn += 1;
-                    let p = mat.pdf(wo, s.wi);
+                    let p = mat.eval_pdf(wo, s.wi).1;
                     assert!((p - s.pdf).abs() <= 1e-4 * p.max(1.0), "{p} vs {}", s.pdf);
                     assert!(s.f.is_finite() && s.pdf.is_finite());
-                    assert_eq!(s.f, mat.eval(wo, s.wi));
+                    assert_eq!(s.f, mat.eval_pdf(wo, s.wi).0);
                 }
             }
             assert!(drawn > 900, "{d:?}: only {drawn} samples");
@@ -419,7 +409,7 @@ mod tests {
                     for j in 0..n {
                         let phi = 2.0 * PI * (j as f32 + 0.5) / n as f32;
                         let wi = Vec3::new(sin_i * phi.cos(), sin_i * phi.sin(), cos_i);
-                        total += mat.pdf(wo, wi) as f64;
+                        total += mat.eval_pdf(wo, wi).1 as f64;
                     }
                 }
                 total *= 2.0 * PI as f64 / (n * n) as f64;
