@@ -13,7 +13,7 @@
 
 use glam::{DVec3, Vec3};
 
-use crate::sampling::polygon::{ConvexPolygon, MAX_CLIP_VERTICES, Plane, Verts};
+use crate::sampling::polygon::{ConvexPolygon, MAX_CLIP_VERTICES, Plane, Verts, merge_close_by};
 
 /// Where `x` lies relative to one portal of a light.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -440,15 +440,9 @@ fn clip_f64(vertices: &[DVec3], plane: PlaneF64) -> Vec<DVec3> {
 /// Drops vertices within `tol` of their predecessor: clipping repeats a vertex that lies on
 /// the plane, and a very short edge would give planes with an ill-defined direction.
 fn merge_close(vertices: &[DVec3], tol: f64) -> Vec<DVec3> {
-    let mut out: Vec<DVec3> = Vec::with_capacity(vertices.len());
-    for &v in vertices {
-        if out.last().is_none_or(|&q| q.distance(v) > tol) {
-            out.push(v);
-        }
-    }
-    while out.len() > 1 && out[0].distance(out[out.len() - 1]) <= tol {
-        out.pop();
-    }
+    let mut out = vertices.to_vec();
+    let kept = merge_close_by(&mut out, |a, b| a.distance(b) <= tol);
+    out.truncate(kept);
     out
 }
 

@@ -447,17 +447,24 @@ pub fn clip_convex(subject: &[Vec3], clip: &ConvexPolygon) -> Verts {
 /// edge between the copies has a direction made by rounding. What is kept is a subsequence of
 /// the vertices, so a convex polygon stays convex.
 pub fn merge_close(vertices: &mut Verts, tol: f32) {
+    let kept = merge_close_by(vertices, |a, b| a.distance(b) <= tol);
+    vertices.truncate(kept);
+}
+
+/// [`merge_close`] for any vertex type and closeness: moves the kept vertices to the front of
+/// `vertices` and returns how many there are.
+pub fn merge_close_by<T: Copy>(vertices: &mut [T], close: impl Fn(T, T) -> bool) -> usize {
     let mut kept = 0;
     for i in 0..vertices.len() {
-        if kept == 0 || vertices[kept - 1].distance(vertices[i]) > tol {
+        if kept == 0 || !close(vertices[kept - 1], vertices[i]) {
             vertices[kept] = vertices[i];
             kept += 1;
         }
     }
-    vertices.truncate(kept);
-    while vertices.len() > 1 && vertices[0].distance(vertices[vertices.len() - 1]) <= tol {
-        vertices.pop();
+    while kept > 1 && close(vertices[0], vertices[kept - 1]) {
+        kept -= 1;
     }
+    kept
 }
 
 /// Andrew's monotone chain; counter-clockwise, without collinear points.
