@@ -8,7 +8,7 @@
 //!
 //! ```text
 //! io, camera, sampling, asset      files, the pinhole camera, warps and polygons, scene descriptions
-//! material, light                  the BSDF; area lights, portals, regions, strategies
+//! material, surface, light         the BSDF and its textures at a point; area lights, portals, regions, strategies
 //! scene                            a validated scene ready to trace (triangles, BVH, lights)
 //! render                           integrator, passes, film, statistics, background workers
 //! compare                          metrics, references, equal-time comparison and its worker
@@ -29,3 +29,4 @@ pub mod material;
 pub mod render;
 pub mod sampling;
 pub mod scene;
+pub mod surface;

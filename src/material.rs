@@ -59,47 +59,93 @@ pub fn f0_from_ior(ior: f32) -> f32 {
     r * r
 }
 
+/// The glTF parameters a material is made of (factors times textures at a point).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MaterialParams {
+    pub base_color: Vec3,
+    pub metallic: f32,
+    /// Perceptual roughness.
+    pub roughness: f32,
+    pub specular_factor: f32,
+    pub specular_color: Vec3,
+    pub ior: f32,
+    pub emission: Vec3,
+    pub double_sided: bool,
+}
+
+impl MaterialParams {
+    pub fn from_desc(desc: &MaterialDesc) -> Self {
+        MaterialParams {
+            base_color: desc.base_color,
+            metallic: desc.metallic,
+            roughness: desc.roughness,
+            specular_factor: desc.specular_factor,
+            specular_color: desc.specular_color,
+            ior: desc.ior,
+            emission: desc.radiance(),
+            double_sided: desc.double_sided,
+        }
+    }
+}
+
 impl Material {
     pub fn from_desc(desc: &MaterialDesc) -> Self {
-        let r = desc.roughness.clamp(0.0, 1.0);
-        let weight = desc.specular_factor.clamp(0.0, 1.0);
-        let f0 = (f0_from_ior(desc.ior.max(0.0)) * desc.specular_color.max(Vec3::ZERO))
-            .min(Vec3::ONE)
+        Self::without_lobes(&MaterialParams::from_desc(desc)).with_lobes()
+    }
+
+    /// The material of a textured point seen from directions `wo` with `cos θo = cos_o`: its
+    /// `wo`-only terms are computed at that one angle, so it must be evaluated and sampled
+    /// for that `wo` only (as a shading point is).
+    pub fn at_incidence(params: &MaterialParams, cos_o: f32) -> Self {
+        let mut m = Self::without_lobes(params);
+        let lobe = m.lobe_at(cos_o);
+        m.lobes = [lobe; ALBEDO_COS_CELLS + 1];
+        m
+    }
+
+    fn without_lobes(p: &MaterialParams) -> Self {
+        let r = p.roughness.clamp(0.0, 1.0);
+        let weight = p.specular_factor.clamp(0.0, 1.0);
+        let f0 = (f0_from_ior(p.ior.max(0.0)) * p.specular_color.max(Vec3::ZERO)).min(Vec3::ONE)
             * weight;
         // Schlick's F90 = 1 describes an interface; F0 = 0 in every channel means there is
         // none (Blender's Specular 0, or ior = 1), so the layer is absent rather than a rim.
         let f90 = if f0.max_element() > 0.0 { weight } else { 0.0 };
         Material {
-            base_color: desc.base_color.clamp(Vec3::ZERO, Vec3::ONE),
-            metallic: desc.metallic.clamp(0.0, 1.0),
+            base_color: p.base_color.clamp(Vec3::ZERO, Vec3::ONE),
+            metallic: p.metallic.clamp(0.0, 1.0),
             alpha: (r * r).max(MIN_ALPHA),
             f0,
             f90,
-            emission: desc.radiance().max(Vec3::ZERO),
-            double_sided: desc.double_sided,
+            emission: p.emission.max(Vec3::ZERO),
+            double_sided: p.double_sided,
             lobes: [[0.0; 2]; ALBEDO_COS_CELLS + 1],
         }
-        .with_lobes()
     }
 
     /// Fills `lobes` from the other fields: the specular layer's albedo and the probability
     /// of sampling the specular lobes at each column of `√cos θo`.
     fn with_lobes(mut self) -> Self {
-        for (i, lobe) in self.lobes.iter_mut().enumerate() {
+        for i in 0..=ALBEDO_COS_CELLS {
             let cos_o = (i as f32 / ALBEDO_COS_CELLS as f32).powi(2);
-            let (a, b) = ggx_albedo(cos_o, self.alpha);
-            let m = self.metallic;
-            let mean = |v: Vec3| (v.x + v.y + v.z) / 3.0;
-            // Rounded up by the table's relative error, so the diffuse never keeps energy the
-            // lobe reflects (a layer with F0 = F90 = 0 still takes exactly nothing).
-            let e_max = ((self.f0.max_element() * a + self.f90 * b) * ALBEDO_ROUND_UP).min(1.0);
-            let dielectric = mean(self.f0) * a + self.f90 * b;
-            let specular = (1.0 - m) * dielectric + m * (mean(self.base_color) * a + b);
-            let diffuse = (1.0 - m) * (1.0 - e_max) * mean(self.base_color);
-            let total = specular + diffuse;
-            *lobe = [e_max, if total > 0.0 { specular / total } else { 0.0 }];
+            self.lobes[i] = self.lobe_at(cos_o);
         }
         self
+    }
+
+    /// `[E(wo), P(specular lobes)]` at `cos θo` (see [`Self::lobe_weights`]).
+    fn lobe_at(&self, cos_o: f32) -> [f32; 2] {
+        let (a, b) = ggx_albedo(cos_o, self.alpha);
+        let m = self.metallic;
+        let mean = |v: Vec3| (v.x + v.y + v.z) / 3.0;
+        // Rounded up by the table's relative error, so the diffuse never keeps energy the
+        // lobe reflects (a layer with F0 = F90 = 0 still takes exactly nothing).
+        let e_max = ((self.f0.max_element() * a + self.f90 * b) * ALBEDO_ROUND_UP).min(1.0);
+        let dielectric = mean(self.f0) * a + self.f90 * b;
+        let specular = (1.0 - m) * dielectric + m * (mean(self.base_color) * a + b);
+        let diffuse = (1.0 - m) * (1.0 - e_max) * mean(self.base_color);
+        let total = specular + diffuse;
+        [e_max, if total > 0.0 { specular / total } else { 0.0 }]
     }
 
     /// A pure Lambertian reflector (no specular layer).

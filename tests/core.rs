@@ -328,6 +328,7 @@ fn furnace(albedo: f32) -> (f64, f64) {
         portals: vec![],
         lamps: vec![],
         warnings: Vec::new(),
+        images: Vec::new(),
         camera: camera(Vec3::new(0.0, 0.0, 4.0), Vec3::ZERO),
     };
     let scene = Scene::from_desc(desc, "furnace").unwrap();

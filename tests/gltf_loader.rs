@@ -191,6 +191,7 @@ fn quad(name: &str, material: usize, corners: [Vec3; 4], normal: Vec3) -> MeshDe
         positions: corners.to_vec(),
         normals: vec![normal; 4],
         indices: vec![[0, 1, 2], [0, 2, 3]],
+        ..MeshDesc::default()
     }
 }
 
@@ -286,6 +287,7 @@ fn sample_scene() -> SceneDesc {
             aspect: 1.5,
         }),
         warnings: Vec::new(),
+        images: Vec::new(),
     }
 }
 

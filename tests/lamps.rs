@@ -51,6 +51,7 @@ fn floor_only() -> SceneDesc {
         portals: vec![],
         lamps: vec![],
         warnings: Vec::new(),
+        images: Vec::new(),
         camera: camera(Vec3::new(0.0, 3.0, 3.0), Vec3::ZERO),
     }
 }

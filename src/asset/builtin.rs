@@ -101,6 +101,7 @@ pub fn flat_mesh(node: &str, material: usize, polygons: &[Vec<Vec3>]) -> MeshDes
         positions: Vec::new(),
         normals: Vec::new(),
         indices: Vec::new(),
+        ..MeshDesc::default()
     };
     for poly in polygons {
         let base = mesh.positions.len() as u32;
@@ -293,6 +294,7 @@ fn blob(center: Vec3, radius: f32, subdivisions: u32) -> MeshDesc {
         positions,
         normals: normals.into_iter().map(|n| n.normalize_or_zero()).collect(),
         indices: faces,
+        ..MeshDesc::default()
     }
 }
 

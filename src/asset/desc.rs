@@ -1,9 +1,68 @@
 //! The scene as authored: what glTF files and the built-in scenes both produce, before any
 //! validation or acceleration. World-space geometry, names kept for error messages.
 
-use glam::{Mat4, Vec3};
+use glam::{Mat4, Vec2, Vec3, Vec4};
+use std::sync::Arc;
 
+use crate::asset::texture::{Image, TextureRef};
 use crate::camera::Camera;
+
+/// glTF `alphaMode`: what the base colour's alpha (factor times texture) does.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub enum AlphaMode {
+    /// Alpha is ignored.
+    #[default]
+    Opaque,
+    /// The surface is absent where alpha is below `cutoff` (`alphaCutoff`, 0.5 by default):
+    /// rays pass through it.
+    Mask { cutoff: f32 },
+    /// glTF's blending, rendered as stochastic coverage: each ray passes through a point
+    /// with probability `1 − alpha` (so a pixel averages to alpha blending, without tint).
+    Blend,
+}
+
+/// A `normalTexture`: tangent-space normals, their x and y scaled by `scale`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct NormalTexture {
+    pub texture: TextureRef,
+    pub scale: f32,
+}
+
+/// A material's textures (each multiplies its factor, as glTF says).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct MaterialTextures {
+    /// `baseColorTexture`: sRGB colour, linear alpha.
+    pub base_color: Option<TextureRef>,
+    /// `metallicRoughnessTexture`: roughness in G, metalness in B.
+    pub metallic_roughness: Option<TextureRef>,
+    pub normal: Option<NormalTexture>,
+    /// `emissiveTexture`: sRGB colour.
+    pub emissive: Option<TextureRef>,
+    /// `KHR_materials_specular` `specularTexture`: the factor in A.
+    pub specular: Option<TextureRef>,
+    /// `KHR_materials_specular` `specularColorTexture`: sRGB colour.
+    pub specular_color: Option<TextureRef>,
+}
+
+impl MaterialTextures {
+    pub fn any(&self) -> bool {
+        self.refs().next().is_some()
+    }
+
+    /// Every texture reference, the normal map's included.
+    pub fn refs(&self) -> impl Iterator<Item = &TextureRef> {
+        [
+            self.base_color.as_ref(),
+            self.metallic_roughness.as_ref(),
+            self.normal.as_ref().map(|n| &n.texture),
+            self.emissive.as_ref(),
+            self.specular.as_ref(),
+            self.specular_color.as_ref(),
+        ]
+        .into_iter()
+        .flatten()
+    }
+}
 
 /// A glTF metallic-roughness material, reduced to what the renderer uses.
 #[derive(Clone, Debug, PartialEq)]
@@ -25,6 +84,10 @@ pub struct MaterialDesc {
     /// `KHR_materials_ior` `ior` (1.5 when absent): 0 (infinite, F0 = 1) or ≥ 1.
     pub ior: f32,
     pub double_sided: bool,
+    /// `baseColorFactor`'s alpha.
+    pub alpha: f32,
+    pub alpha_mode: AlphaMode,
+    pub textures: MaterialTextures,
 }
 
 /// The glTF defaults of the specular layer: what a file without the extensions means.
@@ -45,6 +108,9 @@ impl MaterialDesc {
             specular_color: DEFAULT_SPECULAR_COLOR,
             ior: DEFAULT_IOR,
             double_sided: true,
+            alpha: 1.0,
+            alpha_mode: AlphaMode::Opaque,
+            textures: MaterialTextures::default(),
         }
     }
 
@@ -82,7 +148,7 @@ impl MaterialDesc {
 }
 
 /// One glTF primitive of one node, flattened into world space.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, Default)]
 pub struct MeshDesc {
     /// The name of the node it came from (portals name their light by it).
     pub node_name: String,
@@ -91,6 +157,11 @@ pub struct MeshDesc {
     /// Per-vertex shading normals, same length as `positions` (computed when absent).
     pub normals: Vec<Vec3>,
     pub indices: Vec<[u32; 3]>,
+    /// `TEXCOORD_0` and `TEXCOORD_1`, each empty or one per position.
+    pub texcoords: [Vec<Vec2>; 2],
+    /// World-space `TANGENT`s (xyz, w = ±1 the bitangent's sign, `B = w·(N × T)`), empty or
+    /// one per position; generated the MikkTSpace way when a normal map needs them.
+    pub tangents: Vec<Vec4>,
 }
 
 /// A portal as authored: a node whose `extras` name its light.
@@ -181,6 +252,9 @@ pub struct SceneDesc {
     pub lamps: Vec<LampDesc>,
     /// The file's first camera, if any (else one is made to frame the scene).
     pub camera: Option<Camera>,
+    /// Decoded images that materials' textures name by index (shared, not copied, when a
+    /// description is cloned for a portal edit).
+    pub images: Vec<Arc<Image>>,
     /// What the file holds that is not read (an extension, a texture), each naming the file
     /// and what is left out: shown to the user, never dropped in silence.
     pub warnings: Vec<String>,

@@ -4,3 +4,4 @@
 pub mod builtin;
 pub mod desc;
 pub mod gltf;
+pub mod texture;

@@ -11,7 +11,8 @@ use crate::light::{Strategy, Technique};
 use crate::material::Material;
 use crate::sampling::{Frame, Rng, power_heuristic};
 use crate::scene::bvh::Tracer;
-use crate::scene::{NO_LIGHT, Scene};
+use crate::scene::{NO_ATTRIBUTES, NO_LIGHT, Scene};
+use crate::surface::SurfacePoint;
 
 /// What a render is asked to do.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -83,8 +84,15 @@ impl<'a> Integrator<'a> {
             scene,
             lights: LightSampler::new(scene, settings.strategy, settings.alpha),
             settings,
+            // A cut-out light lets rays through its holes: it must be found by tracing.
             polygon_lights: lights.len() <= DIRECT_LIGHT_TEST_LIMIT
-                && lights.iter().all(|l| l.polygon.is_some()),
+                && lights.iter().all(|l| l.polygon.is_some())
+                && scene
+                    .geometry
+                    .light_surfaces
+                    .iter()
+                    .flatten()
+                    .all(|s| s.surface.alpha_mode == crate::asset::desc::AlphaMode::Opaque),
         }
     }
 
@@ -149,10 +157,24 @@ impl<'a> Integrator<'a> {
             let (p, ns) = tri.point(hit.bary);
             let ng = tri.geometric_normal();
             let wo = -d;
+            // Textured triangles: the attributes at the hit.
+            let point: Option<SurfacePoint> = (tri.attributes != NO_ATTRIBUTES)
+                .then(|| geometry.attributes.get(tri.attributes as usize))
+                .flatten()
+                .map(|a| a.at(hit.bary));
+            let surface = point.and_then(|_| {
+                geometry
+                    .surfaces
+                    .get(tri.material as usize)
+                    .and_then(Option::as_ref)
+            });
 
             if tri.light != NO_LIGHT {
                 let light = tri.light as usize;
-                let le = geometry.lights[light].emitted(ng, wo);
+                let mut le = geometry.lights[light].emitted(ng, wo);
+                if let (Some(s), Some(point)) = (surface, &point) {
+                    le *= s.emission_scale(&point.uvs);
+                }
                 match previous {
                     None => l += beta * le,
                     Some((x, picked, bsdf_pdf)) if le != Vec3::ZERO => {
@@ -172,9 +194,19 @@ impl<'a> Integrator<'a> {
             if depth == self.settings.max_depth || material.is_black() {
                 break;
             }
-            let Some(shading) = Self::shading(p, ns, ng, wo, material) else {
+            let mapped = surface
+                .zip(point.as_ref())
+                .and_then(|(s, q)| s.mapped_normal(q, ns));
+            let Some(mut shading) = Self::shading(p, ns, ng, wo, material, mapped) else {
                 break;
             };
+            // A textured material is evaluated at the point, for this shading point's `wo`.
+            let textured;
+            if let (Some(s), Some(point)) = (surface, &point) {
+                textured = s.material(&point.uvs, shading.wo_local.z);
+                shading.material = &textured;
+            }
+            let material = shading.material;
 
             // Next-event estimation through the chosen strategy.
             let direct = self.sample_direct(
@@ -243,7 +275,10 @@ impl<'a> Integrator<'a> {
         let Some(polygon) = &geometry.lights[light].polygon else {
             return Vec3::ZERO;
         };
-        let le = geometry.lights[light].emitted(polygon.normal(), -d);
+        let mut le = geometry.lights[light].emitted(polygon.normal(), -d);
+        if let Some(Some(surface)) = geometry.light_surfaces.get(light) {
+            le *= surface.emission_scale(o + t * d);
+        }
         if le == Vec3::ZERO {
             return Vec3::ZERO;
         }
@@ -277,17 +312,27 @@ impl<'a> Integrator<'a> {
     }
 
     /// The shading frame on the side the ray came from, or `None` where the shading normal
-    /// makes the outgoing direction go below the surface.
+    /// makes the outgoing direction go below the surface. `mapped` is the normal map's normal
+    /// (for the front side); it is used only where it stays on the side of the geometric
+    /// normal that `wo` is on and keeps `wo` above its horizon, else the interpolated normal
+    /// is (a normal map must not turn a visible point black). Light from below the geometric
+    /// surface is refused separately (`wi · ng > 0`), so a tilted normal never leaks light.
     fn shading<'m>(
         p: Vec3,
         ns: Vec3,
         ng: Vec3,
         wo: Vec3,
         material: &'m Material,
+        mapped: Option<Vec3>,
     ) -> Option<Shading<'m>> {
-        let ng = if ng.dot(wo) < 0.0 { -ng } else { ng };
+        let back = ng.dot(wo) < 0.0;
+        let ng = if back { -ng } else { ng };
         let ns = if ns == Vec3::ZERO { ng } else { ns };
         let ns = if ns.dot(ng) < 0.0 { -ns } else { ns };
+        let ns = match mapped.map(|n| if back { -n } else { n }) {
+            Some(n) if n.dot(ng) > 0.0 && n.dot(wo) > 1e-4 => n,
+            _ => ns,
+        };
         let frame = Frame::from_normal(ns);
         let wo_local = frame.to_local(wo);
         (wo_local.z > 0.0).then(|| Shading {
@@ -341,7 +386,7 @@ impl<'a> Integrator<'a> {
         let l = match &sample {
             Some(sample) => {
                 stats.count_technique(sample.technique);
-                self.direct(tracer, sample, light_prob, s, stats)
+                self.direct(tracer, sample, light, light_prob, s, stats)
             }
             None => {
                 stats.empty_samples += 1;
@@ -394,14 +439,20 @@ impl<'a> Integrator<'a> {
         &self,
         tracer: &T,
         sample: &LightSample,
+        light: usize,
         light_prob: f32,
         s: &Shading,
         stats: &mut Stats,
     ) -> Vec3 {
-        let Some((_, dist)) = sample.hit else {
+        let Some((y, dist)) = sample.hit else {
             return Vec3::ZERO;
         };
-        if sample.le == Vec3::ZERO
+        // A textured light's emission at the sampled point.
+        let le = match self.scene.geometry.light_surfaces.get(light) {
+            Some(Some(surface)) => sample.le * surface.emission_scale(y.p),
+            _ => sample.le,
+        };
+        if le == Vec3::ZERO
             || sample.pdf.is_nan()
             || sample.pdf <= 0.0
             || sample.wi.dot(s.ng) <= 0.0
@@ -420,7 +471,7 @@ impl<'a> Integrator<'a> {
             return Vec3::ZERO;
         }
         let light_pdf = light_prob * sample.pdf;
-        f * sample.le * wi_local.z * power_heuristic(light_pdf, bsdf_pdf) / light_pdf
+        f * le * wi_local.z * power_heuristic(light_pdf, bsdf_pdf) / light_pdf
     }
 
     /// The light technique's pdf (selection times mixture) for the direction `d` from the

@@ -12,6 +12,8 @@ use obvhs::{
 };
 use std::collections::HashMap;
 
+use crate::surface::SurfaceTextures;
+
 /// A triangle laid out for intersection (obvhs's `RtTriangle` layout), with a Möller–Trumbore
 /// test whose inside check accepts -0.0: obvhs's sign-bit test rejects it, so a ray exactly on
 /// the shared diagonal of a quad would slip between its two triangles.
@@ -105,6 +107,67 @@ pub struct Bvh {
     triangles: Vec<RtTri>,
     /// Scene index of each triangle in BVH order.
     scene_index: Vec<u32>,
+    /// Alpha-tested triangles, if the scene has any: rays pass through their cut-out parts.
+    cutouts: Option<Cutouts>,
+}
+
+/// A triangle whose material is alpha-tested: its corners' `TEXCOORD_0/1` and its surface.
+#[derive(Clone, Copy, Debug)]
+pub struct CutoutTriangle {
+    pub uvs: [[Vec2; 3]; 2],
+    /// Index into the surfaces given to [`Bvh::set_cutouts`].
+    pub surface: u32,
+}
+
+/// The any-hit test of alpha-tested triangles (glTF MASK and BLEND materials).
+struct Cutouts {
+    /// Per triangle in BVH order: index into `triangles`, or `u32::MAX`.
+    slot: Vec<u32>,
+    triangles: Vec<CutoutTriangle>,
+    surfaces: Vec<SurfaceTextures>,
+}
+
+impl Cutouts {
+    /// Whether the ray meets BVH triangle `id` at barycentrics (u, v).
+    #[inline]
+    fn present(&self, id: usize, u: f32, v: f32, ray: &Ray) -> bool {
+        let Some(t) = self
+            .slot
+            .get(id)
+            .and_then(|&k| self.triangles.get(k as usize))
+        else {
+            return true;
+        };
+        let Some(surface) = self.surfaces.get(t.surface as usize) else {
+            return true;
+        };
+        let w = 1.0 - u - v;
+        let uvs = t.uvs.map(|c| w * c[0] + u * c[1] + v * c[2]);
+        surface.is_present(&uvs, || coverage_uniform(ray, id))
+    }
+}
+
+/// A uniform number in [0, 1) hashed from the ray and the triangle, for BLEND coverage: the
+/// same ray always makes the same choice (the closest-hit traversal may test a triangle more
+/// than once), and rays of different samples decide independently.
+fn coverage_uniform(ray: &Ray, id: usize) -> f32 {
+    let words = [
+        ray.origin.x.to_bits(),
+        ray.origin.y.to_bits(),
+        ray.origin.z.to_bits(),
+        ray.direction.x.to_bits(),
+        ray.direction.y.to_bits(),
+        ray.direction.z.to_bits(),
+        id as u32,
+    ];
+    // FNV-1a over the words, then a 64-bit finaliser (splitmix64's).
+    let mut h = words.iter().fold(0xcbf2_9ce4_8422_2325u64, |h, &w| {
+        (h ^ w as u64).wrapping_mul(0x0000_0100_0000_01b3)
+    });
+    h = (h ^ (h >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    h = (h ^ (h >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    h ^= h >> 31;
+    (h >> 40) as f32 / (1u64 << 24) as f32
 }
 
 /// Why triangles cannot be put in a BVH that obvhs builds in reasonable time and traverses
@@ -192,6 +255,7 @@ impl Bvh {
                 cwbvh: None,
                 triangles: Vec::new(),
                 scene_index: Vec::new(),
+                cutouts: None,
             });
         }
         let mut sharing: HashMap<[u32; 6], usize> = HashMap::new();
@@ -241,7 +305,52 @@ impl Bvh {
             cwbvh: Some(cwbvh),
             triangles,
             scene_index,
+            cutouts: None,
         })
+    }
+
+    /// Makes the triangles that `cutout` gives (by scene index) alpha-tested against
+    /// `surfaces`: rays pass through where they are absent.
+    pub fn set_cutouts(
+        &mut self,
+        cutout: impl Fn(u32) -> Option<CutoutTriangle>,
+        surfaces: Vec<SurfaceTextures>,
+    ) {
+        let mut triangles = Vec::new();
+        let slot = self
+            .scene_index
+            .iter()
+            .map(|&i| match cutout(i) {
+                Some(t) => {
+                    triangles.push(t);
+                    triangles.len() as u32 - 1
+                }
+                None => u32::MAX,
+            })
+            .collect();
+        self.cutouts = (!triangles.is_empty()).then_some(Cutouts {
+            slot,
+            triangles,
+            surfaces,
+        });
+    }
+
+    /// Distance to BVH triangle `id` along the ray, or infinity: a miss, or a cut-out point.
+    #[inline(always)]
+    fn intersect_cutout(&self, cutouts: &Cutouts, ray: &Ray, id: usize) -> f32 {
+        let tri = &self.triangles[id];
+        let (u, v, t) = tri.uvt(ray);
+        if u >= 0.0
+            && v >= 0.0
+            && u + v <= 1.0
+            && t >= ray.tmin
+            && t <= ray.tmax
+            && cutouts.present(id, u, v, ray)
+        {
+            t
+        } else {
+            f32::INFINITY
+        }
     }
 
     /// The closest hit of `origin + t·dir` with `t` in `(tmin, tmax)`.
@@ -250,7 +359,11 @@ impl Bvh {
         let bvh = self.cwbvh.as_ref()?;
         let ray = make_ray(origin, dir, tmin, tmax);
         let mut hit = RayHit::none();
-        if !bvh.ray_traverse(ray, &mut hit, |r, id| self.triangles[id].intersect(r)) {
+        let found = match &self.cutouts {
+            None => bvh.ray_traverse(ray, &mut hit, |r, id| self.triangles[id].intersect(r)),
+            Some(c) => bvh.ray_traverse(ray, &mut hit, |r, id| self.intersect_cutout(c, r, id)),
+        };
+        if !found {
             return None;
         }
         let (u, v, _) = self.triangles[hit.primitive_id as usize].uvt(&ray);
@@ -268,7 +381,10 @@ impl Bvh {
             return false;
         };
         let ray = make_ray(origin, dir, tmin, tmax);
-        !bvh.ray_traverse_miss(ray, |r, id| self.triangles[id].intersect(r))
+        match &self.cutouts {
+            None => !bvh.ray_traverse_miss(ray, |r, id| self.triangles[id].intersect(r)),
+            Some(c) => !bvh.ray_traverse_miss(ray, |r, id| self.intersect_cutout(c, r, id)),
+        }
     }
 
     pub fn triangle_count(&self) -> usize {

@@ -2,10 +2,11 @@
 
 pub mod bvh;
 
-use glam::{Vec2, Vec3};
+use glam::{Vec2, Vec3, Vec4};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
+use crate::asset::desc::MeshDesc;
 use crate::asset::desc::{LampKind, PortalDesc, SceneDesc};
 use crate::asset::{builtin, gltf};
 use crate::camera::Camera;
@@ -14,7 +15,8 @@ use crate::light::area::AreaLight;
 use crate::light::portal::{Portal, PortalError};
 use crate::light::punctual::Lamp;
 use crate::material::Material;
-use bvh::Bvh;
+use crate::surface::{MissingImage, SurfacePoint, SurfaceTextures};
+use bvh::{Bvh, CutoutTriangle};
 
 /// Why a scene cannot be used.
 #[derive(Debug, thiserror::Error)]
@@ -47,6 +49,8 @@ pub enum SceneError {
     },
     #[error("{file}: {error}")]
     Bvh { file: String, error: bvh::BvhError },
+    #[error("{file}: {error}")]
+    Texture { file: String, error: MissingImage },
     #[error("unknown built-in scene '{0}' (built-ins: {names})", names = builtin::NAMES.join(", "))]
     UnknownBuiltin(String),
 }
@@ -59,9 +63,92 @@ pub struct SceneTriangle {
     pub material: u32,
     /// Index of its area light, or `NO_LIGHT`.
     pub light: u32,
+    /// Index of its texture coordinates and tangents in `Geometry::attributes`, or
+    /// `NO_ATTRIBUTES` (an untextured material needs none).
+    pub attributes: u32,
 }
 
 pub const NO_LIGHT: u32 = u32::MAX;
+pub const NO_ATTRIBUTES: u32 = u32::MAX;
+
+/// The per-corner attributes of a triangle whose material is textured.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct TriangleAttributes {
+    /// `TEXCOORD_0` and `TEXCOORD_1` at the three corners.
+    pub uvs: [[Vec2; 3]; 2],
+    /// Tangents (w: the bitangent's sign) at the corners: the file's, or MikkTSpace's.
+    pub tangents: [Vec4; 3],
+}
+
+impl TriangleAttributes {
+    /// The attributes interpolated at barycentrics (u on corner 1, v on corner 2).
+    pub fn at(&self, bary: Vec2) -> SurfacePoint {
+        let w = 1.0 - bary.x - bary.y;
+        let [t0, t1, t2] = self.tangents;
+        SurfacePoint {
+            uvs: self.uvs.map(|c| w * c[0] + bary.x * c[1] + bary.y * c[2]),
+            tangent: (w * t0 + bary.x * t1 + bary.y * t2)
+                .truncate()
+                .extend(if t0.w < 0.0 { -1.0 } else { 1.0 }),
+        }
+    }
+}
+
+/// A light whose emission varies over its surface (an emissive texture or a cut-out): its
+/// triangles and their attributes, to find the emission at any point of it.
+pub struct LightSurface {
+    triangles: Vec<([Vec3; 3], TriangleAttributes)>,
+    pub surface: SurfaceTextures,
+}
+
+impl LightSurface {
+    /// The factor on the light's radiance at its point `p`: the emissive texture's colour,
+    /// times the coverage (zero where cut out, alpha for BLEND). The point's triangle is the
+    /// one it lies in (closest to it, for round-off).
+    pub fn emission_scale(&self, p: Vec3) -> Vec3 {
+        let mut best = (f32::INFINITY, None);
+        for (corners, attributes) in &self.triangles {
+            let [a, b, c] = *corners;
+            let (e1, e2, d) = (b - a, c - a, p - a);
+            let n = e1.cross(e2);
+            let n2 = n.length_squared();
+            if n2 <= 0.0 {
+                continue;
+            }
+            // Barycentrics of p's projection onto the triangle's plane.
+            let u = d.cross(e2).dot(n) / n2;
+            let v = e1.cross(d).dot(n) / n2;
+            let outside = (-u).max(0.0) + (-v).max(0.0) + (u + v - 1.0).max(0.0);
+            let off_plane = d.dot(n).abs() / n2.sqrt() / (e1.length() + e2.length());
+            let error = outside + off_plane;
+            if error < best.0 {
+                best = (error, Some((Vec2::new(u, v), attributes)));
+            }
+        }
+        let Some((bary, attributes)) = best.1 else {
+            return Vec3::ZERO;
+        };
+        let point = attributes.at(bary);
+        self.scale_at(&point.uvs)
+    }
+
+    /// The factor on the radiance at texture coordinates `uvs`.
+    pub fn scale_at(&self, uvs: &[Vec2; 2]) -> Vec3 {
+        let coverage = match self.surface.alpha_mode {
+            crate::asset::desc::AlphaMode::Opaque => 1.0,
+            crate::asset::desc::AlphaMode::Mask { .. } => {
+                if self.surface.is_present(uvs, || 0.0) {
+                    1.0
+                } else {
+                    0.0
+                }
+            }
+            // Coverage on average: a BSDF ray meets the light with probability alpha.
+            crate::asset::desc::AlphaMode::Blend => self.surface.alpha(uvs).clamp(0.0, 1.0),
+        };
+        self.surface.emission_scale(uvs) * coverage
+    }
+}
 
 /// The largest coordinate a vertex may have (NaN is refused too). The BVH build takes
 /// differences of box centres and multiplies surface areas by triangle counts in f32: with
@@ -95,6 +182,12 @@ pub struct Geometry {
     pub lamps: Vec<Lamp>,
     pub bvh: Bvh,
     pub bounds: (Vec3, Vec3),
+    /// Per material: its textures, if it has any (or a cut-out).
+    pub surfaces: Vec<Option<SurfaceTextures>>,
+    /// Corner attributes of the triangles of textured materials (see `SceneTriangle`).
+    pub attributes: Vec<TriangleAttributes>,
+    /// Per light: its emission over its surface, when a texture or a cut-out varies it.
+    pub light_surfaces: Vec<Option<LightSurface>>,
 }
 
 impl Geometry {
@@ -123,6 +216,17 @@ impl Scene {
         let mut triangles = Vec::new();
         let mut lights = Vec::new();
         let materials: Vec<Material> = desc.materials.iter().map(Material::from_desc).collect();
+        let surfaces = desc
+            .materials
+            .iter()
+            .map(|m| SurfaceTextures::new(m, &desc.images))
+            .collect::<Result<Vec<_>, _>>()
+            .map_err(|error| SceneError::Texture {
+                file: file.to_owned(),
+                error,
+            })?;
+        let mut attributes = Vec::new();
+        let mut light_surfaces = Vec::new();
         for mesh in &desc.meshes {
             let Some(material) = materials.get(mesh.material) else {
                 return Err(SceneError::BadMaterial {
@@ -136,8 +240,11 @@ impl Scene {
             } else {
                 NO_LIGHT
             };
+            let surface = surfaces.get(mesh.material).and_then(Option::as_ref);
+            let mesh_attributes = surface.map(|s| triangle_attributes(mesh, s));
+            let mut light_triangles = Vec::new();
             let mut corners = Vec::with_capacity(mesh.indices.len());
-            for tri in &mesh.indices {
+            for (k, tri) in mesh.indices.iter().enumerate() {
                 let fetch = |i: u32| {
                     let k = i as usize;
                     match (mesh.positions.get(k), mesh.normals.get(k)) {
@@ -162,11 +269,23 @@ impl Scene {
                 let [(p0, n0), (p1, n1), (p2, n2)] =
                     [fetch(tri[0])?, fetch(tri[1])?, fetch(tri[2])?];
                 corners.push([p0, p1, p2]);
+                let triangle_attributes = match &mesh_attributes {
+                    Some(all) => {
+                        let a = all.get(k).copied().unwrap_or_default();
+                        if light != NO_LIGHT {
+                            light_triangles.push(([p0, p1, p2], a));
+                        }
+                        attributes.push(a);
+                        attributes.len() as u32 - 1
+                    }
+                    None => NO_ATTRIBUTES,
+                };
                 triangles.push(SceneTriangle {
                     p: [p0, p1, p2],
                     n: [n0, n1, n2],
                     material: mesh.material as u32,
                     light,
+                    attributes: triangle_attributes,
                 });
             }
             if light != NO_LIGHT {
@@ -176,6 +295,14 @@ impl Scene {
                     material.double_sided,
                     &corners,
                 ));
+                let varies = surface.filter(|s| {
+                    s.has_emission_texture()
+                        || s.alpha_mode != crate::asset::desc::AlphaMode::Opaque
+                });
+                light_surfaces.push(varies.map(|s| LightSurface {
+                    triangles: light_triangles,
+                    surface: s.clone(),
+                }));
             }
         }
         let bounds = triangles
@@ -201,16 +328,51 @@ impl Scene {
         let radius = 0.5 * (hi - lo).length();
         let lamps = desc.lamps.iter().map(|l| Lamp::new(l, radius)).collect();
         let corners: Vec<[Vec3; 3]> = triangles.iter().map(|t| t.p).collect();
+        let mut bvh = Bvh::build(&corners).map_err(|error| SceneError::Bvh {
+            file: file.to_owned(),
+            error,
+        })?;
+        // Alpha-tested materials: the BVH tests their triangles' coverage.
+        let cutout_surfaces: Vec<SurfaceTextures> = surfaces
+            .iter()
+            .flatten()
+            .filter(|s| s.alpha_mode != crate::asset::desc::AlphaMode::Opaque)
+            .cloned()
+            .collect();
+        if !cutout_surfaces.is_empty() {
+            let mut slot = vec![u32::MAX; surfaces.len()];
+            let mut next = 0;
+            for (m, s) in surfaces.iter().enumerate() {
+                if s.as_ref()
+                    .is_some_and(|s| s.alpha_mode != crate::asset::desc::AlphaMode::Opaque)
+                {
+                    slot[m] = next;
+                    next += 1;
+                }
+            }
+            bvh.set_cutouts(
+                |i| {
+                    let t = triangles.get(i as usize)?;
+                    let surface = *slot.get(t.material as usize)?;
+                    let a = attributes.get(t.attributes as usize)?;
+                    (surface != u32::MAX).then_some(CutoutTriangle {
+                        uvs: a.uvs,
+                        surface,
+                    })
+                },
+                cutout_surfaces,
+            );
+        }
         let geometry = Arc::new(Geometry {
-            bvh: Bvh::build(&corners).map_err(|error| SceneError::Bvh {
-                file: file.to_owned(),
-                error,
-            })?,
+            bvh,
             triangles,
             materials,
             lights,
             lamps,
             bounds,
+            surfaces,
+            attributes,
+            light_surfaces,
         });
         let camera = match desc.camera {
             Some(c) => c,
@@ -292,6 +454,110 @@ impl Scene {
         match &self.source {
             Some(p) => p.display().to_string(),
             None => self.name.clone(),
+        }
+    }
+}
+
+/// The corner attributes of every triangle of `mesh`, whose material is textured: texture
+/// coordinates (zero where absent) and tangents, from the mesh or, for a normal map on a mesh
+/// without them, generated by MikkTSpace on the normal map's texture coordinates.
+fn triangle_attributes(mesh: &MeshDesc, surface: &SurfaceTextures) -> Vec<TriangleAttributes> {
+    let uv = |set: usize, i: u32| {
+        mesh.texcoords[set]
+            .get(i as usize)
+            .copied()
+            .unwrap_or(Vec2::ZERO)
+    };
+    let mut out: Vec<TriangleAttributes> = mesh
+        .indices
+        .iter()
+        .map(|t| TriangleAttributes {
+            uvs: [0, 1].map(|set| t.map(|i| uv(set, i))),
+            tangents: t.map(|i| mesh.tangents.get(i as usize).copied().unwrap_or(Vec4::ZERO)),
+        })
+        .collect();
+    if let Some(normal_map) = surface.normal_map()
+        && mesh.tangents.len() != mesh.positions.len()
+    {
+        let mut generator = Mikk {
+            mesh,
+            set: (normal_map.tex_coord as usize).min(1),
+            out: &mut out,
+        };
+        // On failure (no usable faces) the tangents stay zero and the normal map is unused.
+        let _ = bevy_mikktspace::generate_tangents(&mut generator);
+    }
+    out
+}
+
+/// A mesh as MikkTSpace reads it, writing tangents into per-triangle attributes.
+struct Mikk<'a> {
+    mesh: &'a MeshDesc,
+    set: usize,
+    out: &'a mut [TriangleAttributes],
+}
+
+impl Mikk<'_> {
+    fn vertex(&self, face: usize, vert: usize) -> usize {
+        self.mesh
+            .indices
+            .get(face)
+            .and_then(|t| t.get(vert))
+            .map_or(0, |&i| i as usize)
+    }
+}
+
+impl bevy_mikktspace::Geometry for Mikk<'_> {
+    fn num_faces(&self) -> usize {
+        self.mesh.indices.len()
+    }
+
+    fn num_vertices_of_face(&self, _face: usize) -> usize {
+        3
+    }
+
+    fn position(&self, face: usize, vert: usize) -> [f32; 3] {
+        let i = self.vertex(face, vert);
+        self.mesh
+            .positions
+            .get(i)
+            .copied()
+            .unwrap_or(Vec3::ZERO)
+            .to_array()
+    }
+
+    fn normal(&self, face: usize, vert: usize) -> [f32; 3] {
+        let i = self.vertex(face, vert);
+        self.mesh
+            .normals
+            .get(i)
+            .copied()
+            .unwrap_or(Vec3::ZERO)
+            .to_array()
+    }
+
+    fn tex_coord(&self, face: usize, vert: usize) -> [f32; 2] {
+        let i = self.vertex(face, vert);
+        self.mesh.texcoords[self.set]
+            .get(i)
+            .copied()
+            .unwrap_or(Vec2::ZERO)
+            .to_array()
+    }
+
+    fn set_tangent(
+        &mut self,
+        tangent_space: Option<bevy_mikktspace::TangentSpace>,
+        face: usize,
+        vert: usize,
+    ) {
+        if let (Some(ts), Some(slot)) = (
+            tangent_space,
+            self.out
+                .get_mut(face)
+                .and_then(|a| a.tangents.get_mut(vert)),
+        ) {
+            *slot = Vec4::from_array(ts.tangent_encoded());
         }
     }
 }

@@ -76,6 +76,7 @@ pub fn floor_and_light(albedo: f32, light: Vec<Vec3>, le: f32) -> SceneDesc {
         portals: vec![],
         lamps: vec![],
         warnings: Vec::new(),
+        images: Vec::new(),
         camera: camera(Vec3::new(0.0, 3.0, 3.0), Vec3::ZERO),
     }
 }

@@ -293,6 +293,28 @@ impl<'a> Doc<'a> {
         Ok(values)
     }
 
+    /// A VEC2 or VEC4 attribute (`N` components) as floats, every element finite.
+    pub(super) fn read_floats<const N: usize>(
+        &self,
+        accessor: usize,
+        at: &str,
+    ) -> Result<Vec<[f32; N]>, GltfError> {
+        let ty = if N == 2 { Type::Vec2 } else { Type::Vec4 };
+        let data = self.accessor(accessor, at, ty, MAX_ELEMENTS)?;
+        let (component, normalized) = (data.component, data.normalized);
+        let size = component.size();
+        let values = self.read(&data, at, [0.0; N], |b| {
+            std::array::from_fn(|k| read_float(b, k * size, component, normalized))
+        })?;
+        if let Some(k) = values.iter().position(|v| v.iter().any(|x| !x.is_finite())) {
+            return Err(self.invalid(
+                format!("{at}, accessor {accessor}"),
+                format!("element {k} is not finite"),
+            ));
+        }
+        Ok(values)
+    }
+
     pub(super) fn read_indices(&self, accessor: usize, at: &str) -> Result<Vec<u32>, GltfError> {
         let data = self.accessor(accessor, at, Type::Scalar, 3 * MAX_ELEMENTS)?;
         if !is_unsigned(data.component) || data.normalized {

@@ -13,6 +13,7 @@ mod container;
 mod lamps;
 mod read;
 mod save_portals;
+mod textures;
 mod validate;
 mod write;
 
@@ -21,6 +22,7 @@ use container::*;
 use lamps::*;
 use read::*;
 use save_portals::*;
+use textures::*;
 use validate::*;
 use write::*;
 
@@ -31,7 +33,7 @@ use std::ops::Range;
 use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::path::{Path, PathBuf};
 
-use glam::{Mat3, Mat4, Quat, Vec3};
+use glam::{Mat3, Mat4, Quat, Vec2, Vec3, Vec4};
 use gltf::json;
 use json::accessor::{ComponentType, GenericComponentType, IndexComponentType, Type};
 use json::extras::RawValue;
@@ -40,9 +42,10 @@ use json::validation::{Checked, USize64, Validate};
 use serde_json::{Map, Value};
 
 use crate::asset::desc::{
-    DEFAULT_IOR, DEFAULT_PORTAL_ALPHA, DEFAULT_SPECULAR_COLOR, DEFAULT_SPECULAR_FACTOR,
-    MaterialDesc, MeshDesc, PortalDesc, SceneDesc,
+    AlphaMode, DEFAULT_IOR, DEFAULT_PORTAL_ALPHA, DEFAULT_SPECULAR_COLOR, DEFAULT_SPECULAR_FACTOR,
+    MaterialDesc, MaterialTextures, MeshDesc, NormalTexture, PortalDesc, SceneDesc,
 };
+use crate::asset::texture::TextureRef;
 use crate::camera::Camera;
 
 /// The most vertices, or triangles, a file may hold (per accessor and over the whole scene).
@@ -118,7 +121,6 @@ pub fn load_gltf(path: &Path) -> Result<SceneDesc, GltfError> {
         let source = read_source(path)?;
         let root = parse_document(path, source.json())?;
         let mut warnings = unread_extensions(path, &root);
-        warnings.extend(unread_textures(path, &root));
         let buffers = load_buffers(path, &root, source.bin())?;
         let doc = Doc {
             file: path,
@@ -220,6 +222,8 @@ mod tests {
             positions: vec![Vec3::ZERO, Vec3::X, Vec3::Y],
             normals: normals.then(|| vec![Vec3::Z; 3]),
             triangles: vec![[0, 1, 2]],
+            texcoords: [None, None],
+            tangents: None,
         }
     }
 
@@ -247,6 +251,8 @@ mod tests {
             positions: vec![Vec3::ZERO, Vec3::X, Vec3::Z],
             normals: Some(vec![Vec3::new(1.0, 1.0, 0.0).normalize(); 3]),
             triangles: vec![[0, 1, 2]],
+            texcoords: [None, None],
+            tangents: None,
         };
         let Some(mesh) = world_mesh(geometry, scale, "s".into(), 0) else {
             panic!("finite input");

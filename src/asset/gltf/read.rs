@@ -167,6 +167,10 @@ pub(super) struct Geometry {
     pub(super) positions: Vec<Vec3>,
     pub(super) normals: Option<Vec<Vec3>>,
     pub(super) triangles: Vec<[u32; 3]>,
+    /// `TEXCOORD_0` and `TEXCOORD_1`, when present.
+    pub(super) texcoords: [Option<Vec<Vec2>>; 2],
+    /// `TANGENT` (xyz and the bitangent sign w), when present.
+    pub(super) tangents: Option<Vec<Vec4>>,
 }
 
 /// A parsed document with its buffers, and the file to name in errors.
@@ -222,6 +226,38 @@ impl<'a> Doc<'a> {
                 Some(normals)
             }
         };
+        let attribute_at = |name: &str| format!("{at}, {name}");
+        let same_count = |n: usize, name: &str| {
+            if n == positions.len() {
+                Ok(())
+            } else {
+                Err(self.invalid(
+                    attribute_at(name),
+                    format!("has {n} elements but POSITION has {}", positions.len()),
+                ))
+            }
+        };
+        let mut texcoords = [None, None];
+        for (set, slot) in texcoords.iter_mut().enumerate() {
+            let semantic = Checked::Valid(Semantic::TexCoords(set as u32));
+            if let Some(accessor) = primitive.attributes.get(&semantic) {
+                let name = format!("TEXCOORD_{set}");
+                let uvs = self.read_floats::<2>(accessor.value(), &attribute_at(&name))?;
+                same_count(uvs.len(), &name)?;
+                *slot = Some(uvs.into_iter().map(Vec2::from_array).collect());
+            }
+        }
+        let tangents = match primitive
+            .attributes
+            .get(&Checked::Valid(Semantic::Tangents))
+        {
+            None => None,
+            Some(accessor) => {
+                let tangents = self.read_floats::<4>(accessor.value(), &attribute_at("TANGENT"))?;
+                same_count(tangents.len(), "TANGENT")?;
+                Some(tangents.into_iter().map(Vec4::from_array).collect())
+            }
+        };
         // MAX_ELEMENTS keeps vertex numbers within u32.
         let corners = match primitive.indices {
             Some(indices) => self.read_indices(indices.value(), &format!("{at}, indices"))?,
@@ -250,6 +286,8 @@ impl<'a> Doc<'a> {
             positions,
             normals,
             triangles: triangulate(mode, &corners),
+            texcoords,
+            tangents,
         })
     }
 
@@ -260,12 +298,13 @@ impl<'a> Doc<'a> {
         visits: &[Visit],
         warnings: &mut Vec<String>,
     ) -> Result<SceneDesc, GltfError> {
+        let mut images = Images::default();
         let mut materials = self
             .root
             .materials
             .iter()
             .enumerate()
-            .map(|(i, m)| material_desc(self.file, i, m, self.root.textures.len(), warnings))
+            .map(|(i, m)| material_desc(self, i, m, &mut images, warnings))
             .collect::<Result<Vec<_>, _>>()?;
         let mut default_material = None;
         let mut meshes = Vec::new();
@@ -309,6 +348,21 @@ impl<'a> Doc<'a> {
                             materials.len() - 1
                         }),
                     };
+                    if let Some(m) = materials.get(material) {
+                        for texture in m.textures.refs() {
+                            let set = texture.tex_coord as usize;
+                            if geometry.texcoords.get(set).is_none_or(Option::is_none) {
+                                return Err(self.invalid(
+                                    at,
+                                    format!(
+                                        "material \"{}\" has a texture on TEXCOORD_{set}, \
+                                         which the primitive does not have",
+                                        m.name
+                                    ),
+                                ));
+                            }
+                        }
+                    }
                     let name = node_name(visit.node, node);
                     let Some(mesh) = world_mesh(geometry, visit.world, name, material) else {
                         return Err(self.invalid(at, "a world-space position is not finite"));
@@ -331,6 +385,7 @@ impl<'a> Doc<'a> {
             portals,
             lamps,
             camera,
+            images: images.decoded,
             warnings: Vec::new(),
         })
     }
@@ -515,12 +570,30 @@ pub(super) fn world_mesh(
             }
         }
     }
+    // A tangent is a direction on the surface: it moves like a position's difference. The
+    // bitangent `w·(N × T)` must move the same way; with the normal moved by the (mirror-
+    // corrected) inverse transpose, that holds when a mirror flips the sign w.
+    let handedness = if mirrors { -1.0 } else { 1.0 };
+    let tangents = geometry.tangents.map_or_else(Vec::new, |tangents| {
+        tangents
+            .iter()
+            .map(|t| {
+                let sign = if t.w < 0.0 { -1.0 } else { 1.0 };
+                (linear * t.truncate())
+                    .normalize_or_zero()
+                    .extend(sign * handedness)
+            })
+            .collect()
+    });
+    let [uv0, uv1] = geometry.texcoords;
     Some(MeshDesc {
         node_name,
         material,
         positions,
         normals,
         indices,
+        texcoords: [uv0.unwrap_or_default(), uv1.unwrap_or_default()],
+        tangents,
     })
 }
 
@@ -548,18 +621,19 @@ pub(super) fn default_material_desc() -> MaterialDesc {
     }
 }
 
-/// The glTF material `m` (index `index` among `textures` textures) as a description; what it
-/// uses but is not read yet (textures of the specular layer) is added to `warnings`.
+/// The glTF material `m` (index `index`) as a description, its textures' images decoded into
+/// `images`; what it uses but is not read (its occlusion texture) is added to `warnings`.
 pub(super) fn material_desc(
-    file: &Path,
+    doc: &Doc,
     index: usize,
     m: &json::Material,
-    textures: usize,
+    images: &mut Images,
     warnings: &mut Vec<String>,
 ) -> Result<MaterialDesc, GltfError> {
+    let file = doc.file;
     let at = label("material", index, m.name.as_deref());
     let pbr = &m.pbr_metallic_roughness;
-    let [r, g, b, _] = pbr.base_color_factor.0;
+    let [r, g, b, alpha] = pbr.base_color_factor.0;
     let base_color = Vec3::new(r, g, b);
     let metallic = pbr.metallic_factor.0;
     let roughness = pbr.roughness_factor.0;
@@ -579,6 +653,7 @@ pub(super) fn material_desc(
             roughness.is_finite(),
         ),
         ("emissiveFactor", emissive_factor.is_finite()),
+        ("pbrMetallicRoughness.baseColorFactor", alpha.is_finite()),
         (
             "extensions.KHR_materials_emissive_strength.emissiveStrength",
             emissive_strength.is_finite() && emissive_strength >= 0.0,
@@ -601,6 +676,36 @@ pub(super) fn material_desc(
                 format!("{at}, extensions.{name}"),
                 format!("must be an object, found {other}"),
             )),
+        }
+    };
+    let mut textures = core_textures(doc, m, &at, images, warnings)?;
+    let alpha_mode = match m.alpha_mode {
+        Checked::Valid(json::material::AlphaMode::Opaque) => AlphaMode::Opaque,
+        Checked::Valid(json::material::AlphaMode::Mask) => {
+            let cutoff = m.alpha_cutoff.map_or(0.5, |c| c.0);
+            if !cutoff.is_finite() || cutoff < 0.0 {
+                return Err(invalid(
+                    file,
+                    format!("{at}, alphaCutoff"),
+                    format!("must be a non-negative number, found {cutoff}"),
+                ));
+            }
+            AlphaMode::Mask { cutoff }
+        }
+        Checked::Valid(json::material::AlphaMode::Blend) => {
+            warnings.push(format!(
+                "{}: {at}: alphaMode BLEND is rendered as stochastic coverage (a ray passes \
+                 with probability 1 − alpha): no refraction, no tint",
+                file.display()
+            ));
+            AlphaMode::Blend
+        }
+        Checked::Invalid => {
+            return Err(invalid(
+                file,
+                format!("{at}, alphaMode"),
+                "is not a glTF alpha mode",
+            ));
         }
     };
     let mut specular_factor = DEFAULT_SPECULAR_FACTOR;
@@ -641,15 +746,12 @@ pub(super) fn material_desc(
                 ));
             }
         }
-        for key in ["specularTexture", "specularColorTexture"] {
-            if let Some(info) = specular.get(key) {
-                texture_index(file, &field(key), info, textures)?;
-                warnings.push(format!(
-                    "{}: {}: textures are not read yet; the factor alone is used",
-                    file.display(),
-                    field(key)
-                ));
-            }
+        if let Some(info) = specular.get("specularTexture") {
+            textures.specular = Some(doc.texture_ref(info, &field("specularTexture"), images)?);
+        }
+        if let Some(info) = specular.get("specularColorTexture") {
+            let at = field("specularColorTexture");
+            textures.specular_color = Some(doc.texture_ref(info, &at, images)?);
         }
     }
     let mut ior = DEFAULT_IOR;
@@ -678,34 +780,77 @@ pub(super) fn material_desc(
         specular_color,
         ior,
         double_sided: m.double_sided,
+        alpha,
+        alpha_mode,
+        textures,
+    })
+}
+
+/// The core glTF textures of material `m` (the specular layer's are read with its extension).
+fn core_textures(
+    doc: &Doc,
+    m: &json::Material,
+    at: &str,
+    images: &mut Images,
+    warnings: &mut Vec<String>,
+) -> Result<MaterialTextures, GltfError> {
+    // Every textureInfo is read as JSON, so that core and extension textures share one reader
+    // (with `KHR_texture_transform`, which the json crate keeps as an unknown extension).
+    let json = serde_json::to_value(m).map_err(|e| internal(doc.file, e))?;
+    let info = |path: &[&str]| {
+        path.iter()
+            .try_fold(&json, |v, key| v.get(key))
+            .filter(|v| !v.is_null())
+    };
+    let mut read = |path: &[&str]| -> Result<Option<TextureRef>, GltfError> {
+        match info(path) {
+            None => Ok(None),
+            Some(v) => doc
+                .texture_ref(v, &format!("{at}, {}", path.join(".")), images)
+                .map(Some),
+        }
+    };
+    let base_color = read(&["pbrMetallicRoughness", "baseColorTexture"])?;
+    let metallic_roughness = read(&["pbrMetallicRoughness", "metallicRoughnessTexture"])?;
+    let emissive = read(&["emissiveTexture"])?;
+    let normal = match read(&["normalTexture"])? {
+        None => None,
+        Some(texture) => {
+            let scale = m.normal_texture.as_ref().map_or(1.0, |n| n.scale);
+            if !scale.is_finite() {
+                return Err(invalid(
+                    doc.file,
+                    format!("{at}, normalTexture.scale"),
+                    "is not a finite number",
+                ));
+            }
+            Some(NormalTexture { texture, scale })
+        }
+    };
+    if m.occlusion_texture.is_some() {
+        warnings.push(format!(
+            "{}: {at}: occlusionTexture not read (the path tracer computes occlusion itself)",
+            doc.file.display()
+        ));
+    }
+    Ok(MaterialTextures {
+        base_color,
+        metallic_roughness,
+        normal,
+        emissive,
+        specular: None,
+        specular_color: None,
     })
 }
 
 /// A JSON number that is finite as an `f32`.
-fn number(file: &Path, at: &str, value: &Value) -> Result<f32, GltfError> {
+pub(super) fn number(file: &Path, at: &str, value: &Value) -> Result<f32, GltfError> {
     match value.as_f64().map(|x| x as f32) {
         Some(x) if x.is_finite() => Ok(x),
         _ => Err(invalid(
             file,
             at,
             format!("must be a finite number, found {value}"),
-        )),
-    }
-}
-
-/// The texture a `textureInfo` object names, checked to exist.
-fn texture_index(file: &Path, at: &str, info: &Value, textures: usize) -> Result<usize, GltfError> {
-    match info.get("index").and_then(Value::as_u64) {
-        Some(i) if (i as usize) < textures => Ok(i as usize),
-        Some(i) => Err(invalid(
-            file,
-            format!("{at}.index"),
-            format!("texture {i} does not exist (the file has {textures})"),
-        )),
-        None => Err(invalid(
-            file,
-            at,
-            format!("must be a textureInfo with an integer index, found {info}"),
         )),
     }
 }

@@ -67,12 +67,13 @@ pub(super) fn parse_document(file: &Path, json_bytes: &[u8]) -> Result<json::Roo
 
 /// The extensions that are read: emissive strength and the specular layer's factors and IOR
 /// change the materials, quantized attributes are read as normalised integers.
-pub(super) const READ_EXTENSIONS: [&str; 5] = [
+pub(super) const READ_EXTENSIONS: [&str; 6] = [
     EMISSIVE_STRENGTH_EXTENSION,
     SPECULAR_EXTENSION,
     IOR_EXTENSION,
     "KHR_mesh_quantization",
     "KHR_lights_punctual",
+    TEXTURE_TRANSFORM_EXTENSION,
 ];
 
 /// Whether a file that requires `extension` still loads correctly here: it is read, or it only
@@ -248,33 +249,4 @@ pub(super) fn check_material(file: &Path, k: usize, m: &MaterialDesc) -> Result<
         return Err(invalid(file, at, "ior is neither 0 nor at least 1"));
     }
     Ok(())
-}
-
-/// A warning, naming the file and the material, for every material that has core textures
-/// (textures are not read: the factors alone are used).
-pub(super) fn unread_textures(file: &Path, root: &json::Root) -> Vec<String> {
-    let mut warnings = Vec::new();
-    for (i, m) in root.materials.iter().enumerate() {
-        let pbr = &m.pbr_metallic_roughness;
-        let textures = [
-            ("baseColorTexture", pbr.base_color_texture.is_some()),
-            (
-                "metallicRoughnessTexture",
-                pbr.metallic_roughness_texture.is_some(),
-            ),
-            ("normalTexture", m.normal_texture.is_some()),
-            ("occlusionTexture", m.occlusion_texture.is_some()),
-            ("emissiveTexture", m.emissive_texture.is_some()),
-        ];
-        let unread: Vec<&str> = textures.iter().filter(|t| t.1).map(|t| t.0).collect();
-        if !unread.is_empty() {
-            warnings.push(format!(
-                "{}: {}: {} not read (textures are not supported yet; the factors are used)",
-                file.display(),
-                label("material", i, m.name.as_deref()),
-                unread.join(", ")
-            ));
-        }
-    }
-    warnings
 }
