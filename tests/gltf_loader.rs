@@ -646,11 +646,11 @@ fn glb(mut doc: Value, bin: &Bin) -> Vec<u8> {
     doc["bufferViews"] = json!(bin.views);
     doc["buffers"] = json!([{"byteLength": bin.bytes.len()}]);
     let mut json_bytes = serde_json::to_vec(&doc).unwrap();
-    while json_bytes.len() % 4 != 0 {
+    while !json_bytes.len().is_multiple_of(4) {
         json_bytes.push(b' ');
     }
     let mut data = bin.bytes.clone();
-    while data.len() % 4 != 0 {
+    while !data.len().is_multiple_of(4) {
         data.push(0);
     }
     let total = 12 + 8 + json_bytes.len() + 8 + data.len();
@@ -795,7 +795,9 @@ fn check_textured(scene: &SceneDesc) {
 fn missing_and_corrupt_images_are_errors_naming_file_image_and_material() {
     let dir = temp_dir("bad-images");
     let material = json!({"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}});
-    let cases: [(&str, Option<Vec<u8>>, &[&str]); 4] = [
+    // (file name, its bytes or none for a missing file, words the error must hold)
+    type Case<'a> = (&'a str, Option<Vec<u8>>, &'a [&'a str]);
+    let cases: [Case; 4] = [
         ("missing.png", None, &["missing.png", "cannot read"]),
         (
             "corrupt.png",

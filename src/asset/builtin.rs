@@ -1,10 +1,14 @@
 //! Built-in scenes, made in code so that the viewer and the tests need no files:
 //! `lampshade` (the thesis's Figure 1) and `fig8a`, `fig8b`, `fig8c` (its Figure 8).
 
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 use std::collections::HashMap;
+use std::sync::Arc;
 
-use crate::asset::desc::{MaterialDesc, MeshDesc, PortalDesc, SceneDesc};
+use crate::asset::desc::{
+    MaterialDesc, MaterialTextures, MeshDesc, NormalTexture, PortalDesc, SceneDesc,
+};
+use crate::asset::texture::{Image, Sampler, TextureRef};
 use crate::camera::Camera;
 
 /// Names of the built-in scenes.
@@ -113,6 +117,74 @@ pub fn flat_mesh(node: &str, material: usize, polygons: &[Vec<Vec3>]) -> MeshDes
         }
     }
     mesh
+}
+
+/// `desc` with procedural textures on every material that reflects (the emitters keep
+/// theirs): a checkerboard base colour, a roughness pattern and a bumpy normal map, on
+/// texture coordinates projected from world space (so that the scene is the same but for
+/// its texture lookups: the benchmark's textured variant).
+pub fn with_test_textures(mut desc: SceneDesc) -> SceneDesc {
+    const N: u32 = 256;
+    let texels =
+        |f: &dyn Fn(u32, u32) -> [u8; 4]| (0..N * N).map(|i| f(i % N, i / N)).collect::<Vec<_>>();
+    let checker = texels(&|x, y| {
+        let v = if (x / 32 + y / 32) % 2 == 0 { 255 } else { 190 };
+        [v, v, v, 255]
+    });
+    // Roughness in G between 0.5 and 1, no metal in B.
+    let rough = texels(&|x, y| [0, 128 + ((x ^ y) & 127) as u8, 0, 255]);
+    // Bumps: the normal of a height field of sines, tilted by up to about 20°.
+    let bumps = texels(&|x, y| {
+        let (s, t) = (x as f32 / N as f32, y as f32 / N as f32);
+        let tau = std::f32::consts::TAU;
+        let (dx, dy) = (0.35 * (8.0 * tau * s).cos(), 0.35 * (8.0 * tau * t).cos());
+        let n = Vec3::new(-dx, -dy, 1.0).normalize();
+        let encode = |c: f32| ((c * 0.5 + 0.5) * 255.0).round() as u8;
+        [encode(n.x), encode(n.y), encode(n.z), 255]
+    });
+    let first = desc.images.len();
+    for (name, t) in [("checker", checker), ("roughness", rough), ("bumps", bumps)] {
+        if let Some(image) = Image::new(name.into(), N, N, t) {
+            desc.images.push(Arc::new(image));
+        }
+    }
+    let texture = |k: usize| TextureRef {
+        image: first + k,
+        sampler: Sampler::default(),
+        tex_coord: 0,
+        transform: None,
+    };
+    for m in desc.materials.iter_mut().filter(|m| !m.is_emissive()) {
+        m.textures = MaterialTextures {
+            base_color: Some(texture(0)),
+            metallic_roughness: Some(texture(1)),
+            normal: Some(NormalTexture {
+                texture: texture(2),
+                scale: 1.0,
+            }),
+            ..MaterialTextures::default()
+        };
+    }
+    for mesh in &mut desc.meshes {
+        // Projected along the normal's largest axis, a texture every metre.
+        mesh.texcoords[0] = mesh
+            .positions
+            .iter()
+            .zip(&mesh.normals)
+            .map(|(p, n)| {
+                let a = n.abs();
+                if a.y >= a.x && a.y >= a.z {
+                    Vec2::new(p.x, p.z)
+                } else if a.x >= a.z {
+                    Vec2::new(p.z, p.y)
+                } else {
+                    Vec2::new(p.x, p.y)
+                }
+            })
+            .collect();
+    }
+    desc.name.push_str("-textured");
+    desc
 }
 
 #[derive(Clone, Copy)]

@@ -62,6 +62,9 @@ pub struct BenchArgs {
     /// CPU, and the time from a portal edit to the first new preview.
     #[arg(long)]
     pub ui: bool,
+    /// Only the cost of texture lookups: each built-in scene with and without textures.
+    #[arg(long)]
+    pub textures: bool,
 }
 
 /// `portalview bench`: raw traversal against the renderer, and each strategy's cost.
@@ -74,6 +77,9 @@ pub fn run(args: &BenchArgs) -> Result<()> {
         args.size,
         args.seconds
     );
+    if args.textures {
+        return textures(args.size, budget);
+    }
     println!();
     println!(
         "| scene | triangles | raw closest-hit Mrays/s | raw occlusion Mrays/s | raw, all rays Mrays/s | renderer (light) Mrays/s | renderer / raw |"
@@ -132,6 +138,41 @@ pub fn run(args: &BenchArgs) -> Result<()> {
                 samples / elapsed.as_secs_f64() / 1e6,
                 stats.sampling_ns as f64 / stats.light_samples().max(1) as f64,
                 stats.shadow_rays as f64 / samples,
+            );
+        }
+    }
+    textures(args.size, budget)
+}
+
+/// The cost of texture lookups: each built-in scene with and without procedural textures
+/// (base colour, roughness, normal map; `builtin::with_test_textures`), antishadow strategy,
+/// direct light and three bounces.
+fn textures(size: u32, budget: Duration) -> Result<()> {
+    println!();
+    println!(
+        "| scene | bounces | untextured M samples/s | textured M samples/s | textured / untextured |"
+    );
+    println!("|---|---|---|---|---|");
+    for name in builtin::NAMES {
+        let Some(desc) = builtin::desc(name) else {
+            continue;
+        };
+        let plain = Scene::from_desc(desc.clone(), name)?;
+        let textured = Scene::from_desc(builtin::with_test_textures(desc), name)?;
+        for max_depth in [1, 3] {
+            let rate = |scene: &Scene| {
+                let settings = RenderSettings {
+                    max_depth,
+                    ..RenderSettings::default()
+                };
+                let integrator = Integrator::new(scene, settings);
+                let (film, _, elapsed) = render_for(&integrator, size, size, budget);
+                film.spp as f64 * film.pixel_count() as f64 / elapsed.as_secs_f64() / 1e6
+            };
+            let (untextured, with_textures) = (rate(&plain), rate(&textured));
+            println!(
+                "| {name} | {max_depth} | {untextured:.3} | {with_textures:.3} | {:.0}% |",
+                100.0 * with_textures / untextured
             );
         }
     }
