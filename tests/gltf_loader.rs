@@ -551,15 +551,19 @@ fn unread_extensions_and_textures_are_warnings_naming_the_file() {
     doc["textures"] = json!([{"source": 0}]);
     fs::write(dir.join("ao.png"), png(1, 1, &[[255; 4]])).unwrap();
     doc["images"] = json!([{"uri": "ao.png"}]);
+    // Vertex colours (the normals' accessor will do: a VEC3 of floats).
+    let normals = doc["meshes"][0]["primitives"][0]["attributes"]["NORMAL"].clone();
+    doc["meshes"][0]["primitives"][0]["attributes"]["COLOR_0"] = normals;
     write_json(&path, &doc);
     let scene = load_gltf(&path).unwrap();
-    assert_eq!(scene.warnings.len(), 2, "{:?}", scene.warnings);
+    assert_eq!(scene.warnings.len(), 3, "{:?}", scene.warnings);
     let all = scene.warnings.join("\n");
     for word in [
         "textured.gltf",
         "material 0 \"White\"",
         "occlusionTexture",
         "KHR_materials_sheen",
+        "COLOR_0",
     ] {
         assert!(all.contains(word), "no \"{word}\" in {all}");
     }

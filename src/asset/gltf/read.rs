@@ -312,6 +312,7 @@ impl<'a> Doc<'a> {
         let mut lamps = Vec::new();
         let mut camera = None;
         let mut budget = Budget::default();
+        let mut warned_colors = false;
         for visit in visits {
             let Some(node) = self.root.nodes.get(visit.node) else {
                 return Err(self.invalid(format!("node {}", visit.node), "does not exist"));
@@ -336,6 +337,15 @@ impl<'a> Doc<'a> {
                 );
                 for (p, primitive) in mesh.primitives.iter().enumerate() {
                     let at = format!("{mesh_at}, primitive {p}");
+                    let colors = Checked::Valid(Semantic::Colors(0));
+                    if primitive.attributes.contains_key(&colors) && !warned_colors {
+                        warned_colors = true;
+                        warnings.push(format!(
+                            "{}: {at}: vertex colours (COLOR_0) not read; the material's base \
+                             colour is used alone",
+                            self.file.display()
+                        ));
+                    }
                     let geometry = self.geometry(primitive, &at)?;
                     budget.spend(self.file, &at, &geometry)?;
                     let material = match primitive.material {
