@@ -1718,3 +1718,67 @@ fn specular_and_ior_round_trip() {
     }
     let _ = fs::remove_dir_all(&dir);
 }
+
+/// A textured scene exported as `.glb` reads back with the same images, texture references
+/// (samplers, transforms, sets), alpha modes, texture coordinates and tangents.
+#[test]
+fn textured_export_round_trips() {
+    use portalview::asset::desc::AlphaMode;
+    use portalview::asset::texture::{Filter, TextureTransform, Wrap};
+    let dir = temp_dir("textured-export");
+    let mut desc = portalview::asset::builtin::with_test_textures(
+        portalview::asset::builtin::desc("lampshade").unwrap(),
+    );
+    let m = &mut desc.materials[0];
+    m.alpha = 0.7;
+    m.alpha_mode = AlphaMode::Mask { cutoff: 0.25 };
+    let base = m.textures.base_color.as_mut().unwrap();
+    base.transform = Some(TextureTransform {
+        offset: glam::Vec2::new(0.25, -0.5),
+        rotation: 0.5,
+        scale: glam::Vec2::new(2.0, 0.5),
+    });
+    base.sampler.wrap_s = Wrap::MirroredRepeat;
+    base.sampler.filter = Filter::Nearest;
+    m.textures.specular_color = m.textures.base_color;
+    let mesh = &mut desc.meshes[0];
+    mesh.tangents = vec![glam::Vec4::new(1.0, 0.0, 0.0, -1.0); mesh.positions.len()];
+    let path = dir.join("textured.glb");
+    export_glb(&desc, &path).unwrap();
+    let back = load_gltf(&path).unwrap();
+    assert!(back.warnings.is_empty(), "{:?}", back.warnings);
+    for (a, b) in back.materials.iter().zip(&desc.materials) {
+        assert_eq!(
+            (a.alpha, a.alpha_mode),
+            (b.alpha, b.alpha_mode),
+            "{}",
+            b.name
+        );
+        let (ra, rb): (Vec<_>, Vec<_>) = (a.textures.refs().collect(), b.textures.refs().collect());
+        assert_eq!(ra.len(), rb.len(), "{}", b.name);
+        for (x, y) in ra.iter().zip(&rb) {
+            assert_eq!(back.images[x.image].texels(), desc.images[y.image].texels());
+            assert_eq!(
+                (x.sampler, x.tex_coord, x.transform),
+                (y.sampler, y.tex_coord, y.transform)
+            );
+        }
+        assert_eq!(
+            a.textures.normal.map(|n| n.scale),
+            b.textures.normal.map(|n| n.scale)
+        );
+    }
+    for (a, b) in back.meshes.iter().zip(&desc.meshes) {
+        assert_eq!(a.texcoords, b.texcoords, "{}", b.node_name);
+        assert_eq!(a.tangents, b.tangents, "{}", b.node_name);
+    }
+    // A texture on a set the mesh lacks could not be read back: refused.
+    let mut bad = desc.clone();
+    bad.meshes[0].texcoords[0].clear();
+    let message = export_glb(&bad, &path).unwrap_err().to_string();
+    assert!(
+        message.contains("textured.glb") && message.contains("TEXCOORD_0"),
+        "{message}"
+    );
+    let _ = fs::remove_dir_all(&dir);
+}

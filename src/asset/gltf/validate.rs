@@ -154,9 +154,13 @@ pub(super) fn check_mesh(
     file: &Path,
     k: usize,
     mesh: &MeshDesc,
-    materials: usize,
+    materials: &[MaterialDesc],
 ) -> Result<(), GltfError> {
     let at = format!("mesh {k} (node \"{}\")", mesh.node_name);
+    let vertices = mesh.positions.len();
+    let texture_sets = materials.get(mesh.material).map_or(Vec::new(), |m| {
+        m.textures.refs().map(|t| t.tex_coord as usize).collect()
+    });
     let problem = if mesh.positions.is_empty() || mesh.indices.is_empty() {
         Some("has no triangles".to_owned())
     } else if mesh.positions.len() > MAX_ELEMENTS || mesh.indices.len() > MAX_ELEMENTS {
@@ -181,8 +185,30 @@ pub(super) fn check_mesh(
             "index {i} is out of range for {} vertices",
             mesh.positions.len()
         ))
-    } else if mesh.material >= materials {
+    } else if mesh.material >= materials.len() {
         Some(format!("material {} does not exist", mesh.material))
+    } else if let Some(set) = (0..2).find(|&set| {
+        let n = mesh.texcoords[set].len();
+        !(n == 0 || n == vertices) || mesh.texcoords[set].iter().any(|v| !v.is_finite())
+    }) {
+        Some(format!(
+            "has {} TEXCOORD_{set} values for {vertices} positions, or one not finite",
+            mesh.texcoords[set].len()
+        ))
+    } else if !(mesh.tangents.is_empty() || mesh.tangents.len() == vertices)
+        || mesh.tangents.iter().any(|t| !t.is_finite())
+    {
+        Some(format!(
+            "has {} tangents for {vertices} positions, or one not finite",
+            mesh.tangents.len()
+        ))
+    } else if let Some(set) = texture_sets
+        .iter()
+        .find(|&&set| mesh.texcoords.get(set).is_none_or(Vec::is_empty))
+    {
+        Some(format!(
+            "its material has a texture on TEXCOORD_{set}, which it lacks"
+        ))
     } else {
         None
     };
@@ -222,8 +248,36 @@ pub(super) fn check_portal(file: &Path, portal: &PortalDesc) -> Result<(), GltfE
     }
 }
 
-pub(super) fn check_material(file: &Path, k: usize, m: &MaterialDesc) -> Result<(), GltfError> {
+pub(super) fn check_material(
+    file: &Path,
+    k: usize,
+    m: &MaterialDesc,
+    images: usize,
+) -> Result<(), GltfError> {
     let at = format!("material {k} \"{}\"", m.name);
+    if let Some(t) = m
+        .textures
+        .refs()
+        .find(|t| t.image >= images || t.tex_coord > 1)
+    {
+        return Err(invalid(
+            file,
+            at,
+            format!(
+                "a texture names image {} (of {images}) on TEXCOORD_{}",
+                t.image, t.tex_coord
+            ),
+        ));
+    }
+    if !m.alpha.is_finite()
+        || matches!(m.alpha_mode, AlphaMode::Mask { cutoff } if !(cutoff.is_finite() && cutoff >= 0.0))
+    {
+        return Err(invalid(
+            file,
+            at,
+            "has an alpha or alpha cutoff that is not finite",
+        ));
+    }
     let finite = m.base_color.is_finite()
         && m.metallic.is_finite()
         && m.roughness.is_finite()

@@ -69,6 +69,15 @@ impl<'f> GeometryWriter<'f> {
         bytes: &[u8],
         target: json::buffer::Target,
     ) -> Result<json::Index<json::buffer::View>, GltfError> {
+        self.view_for(bytes, Some(target))
+    }
+
+    /// A buffer view of `bytes`; images have no `target`.
+    pub(super) fn view_for(
+        &mut self,
+        bytes: &[u8],
+        target: Option<json::buffer::Target>,
+    ) -> Result<json::Index<json::buffer::View>, GltfError> {
         while !self.bin.len().is_multiple_of(4) {
             self.bin.push(0);
         }
@@ -81,7 +90,7 @@ impl<'f> GeometryWriter<'f> {
             byte_offset: Some(USize64::from(offset)),
             byte_stride: None,
             name: None,
-            target: Some(Checked::Valid(target)),
+            target: target.map(Checked::Valid),
             extensions: None,
             extras: None,
         });
@@ -136,6 +145,21 @@ impl<'f> GeometryWriter<'f> {
         self.accessor(view, values.len(), ComponentType::F32, Type::Vec3, bounds)
     }
 
+    /// A VEC2 or VEC4 attribute (`N` floats per element).
+    pub(super) fn floats<const N: usize>(
+        &mut self,
+        values: &[[f32; N]],
+    ) -> Result<json::Index<json::Accessor>, GltfError> {
+        let bytes: Vec<u8> = values
+            .iter()
+            .flatten()
+            .flat_map(|x| x.to_le_bytes())
+            .collect();
+        let view = self.view(&bytes, json::buffer::Target::ArrayBuffer)?;
+        let ty = if N == 2 { Type::Vec2 } else { Type::Vec4 };
+        self.accessor(view, values.len(), ComponentType::F32, ty, None)
+    }
+
     pub(super) fn indices(
         &mut self,
         triangles: &[[u32; 3]],
@@ -164,7 +188,35 @@ impl<'f> GeometryWriter<'f> {
         triangles: &[[u32; 3]],
         material: Option<usize>,
     ) -> Result<json::Index<json::Mesh>, GltfError> {
+        self.mesh_with(name, positions, normals, triangles, material, None)
+    }
+
+    /// [`Self::mesh`] with the texture coordinates and tangents of `textured`, if given.
+    pub(super) fn mesh_with(
+        &mut self,
+        name: &str,
+        positions: &[Vec3],
+        normals: Option<&[Vec3]>,
+        triangles: &[[u32; 3]],
+        material: Option<usize>,
+        textured: Option<&MeshDesc>,
+    ) -> Result<json::Index<json::Mesh>, GltfError> {
         let mut attributes = BTreeMap::new();
+        if let Some(mesh) = textured {
+            for (set, uvs) in mesh.texcoords.iter().enumerate() {
+                if !uvs.is_empty() {
+                    let values: Vec<[f32; 2]> = uvs.iter().map(|v| v.to_array()).collect();
+                    attributes.insert(
+                        Checked::Valid(Semantic::TexCoords(set as u32)),
+                        self.floats(&values)?,
+                    );
+                }
+            }
+            if !mesh.tangents.is_empty() {
+                let values: Vec<[f32; 4]> = mesh.tangents.iter().map(|v| v.to_array()).collect();
+                attributes.insert(Checked::Valid(Semantic::Tangents), self.floats(&values)?);
+            }
+        }
         attributes.insert(
             Checked::Valid(Semantic::Positions),
             self.vec3s(positions, true)?,
@@ -210,9 +262,151 @@ impl<'f> GeometryWriter<'f> {
     }
 }
 
+/// A material's texture references as glTF textures: one per distinct (image, sampler), each
+/// image written once as PNG in the binary buffer.
+#[derive(Default)]
+pub(super) struct TextureWriter {
+    textures: Vec<(usize, crate::asset::texture::Sampler)>,
+}
+
+impl TextureWriter {
+    /// The glTF texture index for `r`.
+    fn texture(&mut self, r: &TextureRef) -> u32 {
+        let key = (r.image, r.sampler);
+        let k = match self.textures.iter().position(|t| *t == key) {
+            Some(k) => k,
+            None => {
+                self.textures.push(key);
+                self.textures.len() - 1
+            }
+        };
+        k as u32
+    }
+
+    /// `r` as a glTF textureInfo (with `KHR_texture_transform` when it has a transform).
+    fn info(&mut self, r: &TextureRef, used: &mut Vec<&'static str>) -> json::texture::Info {
+        json::texture::Info {
+            index: json::Index::new(self.texture(r)),
+            tex_coord: r.tex_coord,
+            extensions: transform_extension(r, used)
+                .map(|others| json::extensions::texture::Info { others }),
+            extras: None,
+        }
+    }
+
+    /// `r` as textureInfo JSON (for the specular extension, which is kept as JSON).
+    fn info_json(&mut self, r: &TextureRef, used: &mut Vec<&'static str>) -> Value {
+        serde_json::to_value(self.info(r, used)).unwrap_or(Value::Null)
+    }
+
+    /// Writes the images, samplers and textures into `root` and `geometry`'s buffer.
+    fn finish(
+        self,
+        file: &Path,
+        images: &[std::sync::Arc<crate::asset::texture::Image>],
+        root: &mut json::Root,
+        geometry: &mut GeometryWriter,
+    ) -> Result<(), GltfError> {
+        use crate::asset::texture::{Filter, Wrap};
+        let mut written: HashMap<usize, usize> = HashMap::new();
+        for (k, (image, sampler)) in self.textures.into_iter().enumerate() {
+            let source = match written.get(&image) {
+                Some(&i) => i,
+                None => {
+                    let Some(img) = images.get(image) else {
+                        return Err(invalid(
+                            file,
+                            format!("texture {k}"),
+                            format!("image {image} does not exist"),
+                        ));
+                    };
+                    let png = encode_png(img).map_err(|e| internal(file, e))?;
+                    let view = geometry.view_for(&png, None)?;
+                    root.images.push(json::Image {
+                        buffer_view: Some(view),
+                        mime_type: Some(json::image::MimeType("image/png".to_owned())),
+                        name: Some(img.name.clone()),
+                        uri: None,
+                        extensions: None,
+                        extras: None,
+                    });
+                    written.insert(image, root.images.len() - 1);
+                    root.images.len() - 1
+                }
+            };
+            let wrap = |w: Wrap| {
+                Checked::Valid(match w {
+                    Wrap::Repeat => json::texture::WrappingMode::Repeat,
+                    Wrap::ClampToEdge => json::texture::WrappingMode::ClampToEdge,
+                    Wrap::MirroredRepeat => json::texture::WrappingMode::MirroredRepeat,
+                })
+            };
+            root.samplers.push(json::texture::Sampler {
+                mag_filter: Some(Checked::Valid(match sampler.filter {
+                    Filter::Bilinear => json::texture::MagFilter::Linear,
+                    Filter::Nearest => json::texture::MagFilter::Nearest,
+                })),
+                min_filter: None,
+                name: None,
+                wrap_s: wrap(sampler.wrap_s),
+                wrap_t: wrap(sampler.wrap_t),
+                extensions: None,
+                extras: None,
+            });
+            root.textures.push(json::Texture {
+                name: None,
+                sampler: Some(json_index(file, root.samplers.len() - 1)?),
+                source: json_index(file, source)?,
+                extensions: None,
+                extras: None,
+            });
+        }
+        Ok(())
+    }
+}
+
+/// The `KHR_texture_transform` extension object of `r`, if it has a transform.
+fn transform_extension(r: &TextureRef, used: &mut Vec<&'static str>) -> Option<Map<String, Value>> {
+    let t = r.transform?;
+    if !used.contains(&TEXTURE_TRANSFORM_EXTENSION) {
+        used.push(TEXTURE_TRANSFORM_EXTENSION);
+    }
+    let mut object = Map::new();
+    object.insert(
+        "offset".to_owned(),
+        Value::Array(t.offset.to_array().map(json_f32).to_vec()),
+    );
+    object.insert("rotation".to_owned(), json_f32(t.rotation));
+    object.insert(
+        "scale".to_owned(),
+        Value::Array(t.scale.to_array().map(json_f32).to_vec()),
+    );
+    let mut others = Map::new();
+    others.insert(
+        TEXTURE_TRANSFORM_EXTENSION.to_owned(),
+        Value::Object(object),
+    );
+    Some(others)
+}
+
+/// `image` as PNG bytes (8-bit RGBA).
+fn encode_png(image: &crate::asset::texture::Image) -> Result<Vec<u8>, String> {
+    let raw: Vec<u8> = image.texels().iter().flatten().copied().collect();
+    let buffer = image::RgbaImage::from_raw(image.width(), image.height(), raw)
+        .ok_or_else(|| format!("image \"{}\" has the wrong number of texels", image.name))?;
+    let mut bytes = std::io::Cursor::new(Vec::new());
+    buffer
+        .write_to(&mut bytes, image::ImageFormat::Png)
+        .map_err(|e| format!("image \"{}\" cannot be encoded: {e}", image.name))?;
+    Ok(bytes.into_inner())
+}
+
 /// `m` as a glTF material, and the material extensions it uses (each written only when its
-/// values differ from glTF's defaults).
-pub(super) fn export_material(m: &MaterialDesc) -> (json::Material, Vec<&'static str>) {
+/// values differ from glTF's defaults); its textures are numbered by `textures`.
+pub(super) fn export_material(
+    m: &MaterialDesc,
+    textures: &mut TextureWriter,
+) -> (json::Material, Vec<&'static str>) {
     // glTF keeps emissiveFactor in [0, 1]: fold any excess into the strength (same radiance).
     let peak = m.emissive_factor.max_element();
     let (factor, strength) = if peak > 1.0 {
@@ -228,7 +422,8 @@ pub(super) fn export_material(m: &MaterialDesc) -> (json::Material, Vec<&'static
             emissive_strength: json::extensions::material::EmissiveStrengthFactor(strength),
         });
     }
-    if m.has_specular_extension() {
+    let t = &m.textures;
+    if m.has_specular_extension() || t.specular.is_some() || t.specular_color.is_some() {
         used.push(SPECULAR_EXTENSION);
         let mut specular = Map::new();
         specular.insert("specularFactor".to_owned(), json_f32(m.specular_factor));
@@ -236,6 +431,18 @@ pub(super) fn export_material(m: &MaterialDesc) -> (json::Material, Vec<&'static
             "specularColorFactor".to_owned(),
             Value::Array(m.specular_color.to_array().map(json_f32).to_vec()),
         );
+        if let Some(r) = &t.specular {
+            specular.insert(
+                "specularTexture".to_owned(),
+                textures.info_json(r, &mut used),
+            );
+        }
+        if let Some(r) = &t.specular_color {
+            specular.insert(
+                "specularColorTexture".to_owned(),
+                textures.info_json(r, &mut used),
+            );
+        }
         extensions
             .others
             .insert(SPECULAR_EXTENSION.to_owned(), Value::Object(specular));
@@ -248,19 +455,49 @@ pub(super) fn export_material(m: &MaterialDesc) -> (json::Material, Vec<&'static
             .others
             .insert(IOR_EXTENSION.to_owned(), Value::Object(ior));
     }
+    let has_material_extension =
+        !extensions.others.is_empty() || extensions.emissive_strength.is_some();
+    let (alpha_mode, alpha_cutoff) = match m.alpha_mode {
+        AlphaMode::Opaque => (json::material::AlphaMode::Opaque, None),
+        AlphaMode::Mask { cutoff } => (
+            json::material::AlphaMode::Mask,
+            Some(json::material::AlphaCutoff(cutoff)),
+        ),
+        AlphaMode::Blend => (json::material::AlphaMode::Blend, None),
+    };
     let material = json::Material {
         name: Some(m.name.clone()),
         pbr_metallic_roughness: json::material::PbrMetallicRoughness {
             base_color_factor: json::material::PbrBaseColorFactor(
-                m.base_color.extend(1.0).to_array(),
+                m.base_color.extend(m.alpha).to_array(),
             ),
+            base_color_texture: t.base_color.as_ref().map(|r| textures.info(r, &mut used)),
             metallic_factor: json::material::StrengthFactor(m.metallic),
             roughness_factor: json::material::StrengthFactor(m.roughness),
+            metallic_roughness_texture: t
+                .metallic_roughness
+                .as_ref()
+                .map(|r| textures.info(r, &mut used)),
             ..Default::default()
         },
+        normal_texture: t.normal.as_ref().map(|n| {
+            let info = textures.info(&n.texture, &mut used);
+            json::material::NormalTexture {
+                index: info.index,
+                scale: n.scale,
+                tex_coord: info.tex_coord,
+                extensions: info
+                    .extensions
+                    .map(|e| json::extensions::material::NormalTexture { others: e.others }),
+                extras: None,
+            }
+        }),
+        emissive_texture: t.emissive.as_ref().map(|r| textures.info(r, &mut used)),
         emissive_factor: json::material::EmissiveFactor(factor.to_array()),
+        alpha_mode: Checked::Valid(alpha_mode),
+        alpha_cutoff,
         double_sided: m.double_sided,
-        extensions: (!used.is_empty()).then_some(extensions),
+        extensions: has_material_extension.then_some(extensions),
         ..Default::default()
     };
     (material, used)
@@ -300,10 +537,10 @@ pub(super) fn export_document(
     desc: &SceneDesc,
 ) -> Result<(json::Root, Vec<u8>), GltfError> {
     for (k, m) in desc.materials.iter().enumerate() {
-        check_material(file, k, m)?;
+        check_material(file, k, m, desc.images.len())?;
     }
     for (k, mesh) in desc.meshes.iter().enumerate() {
-        check_mesh(file, k, mesh, desc.materials.len())?;
+        check_mesh(file, k, mesh, &desc.materials)?;
     }
     for portal in &desc.portals {
         check_portal(file, portal)?;
@@ -311,8 +548,9 @@ pub(super) fn export_document(
     let mut root = json::Root::default();
     root.asset.generator = Some("portalview".to_owned());
     let mut extensions_used: Vec<&str> = Vec::new();
+    let mut textures = TextureWriter::default();
     for m in &desc.materials {
-        let (material, used) = export_material(m);
+        let (material, used) = export_material(m, &mut textures);
         for extension in used {
             if !extensions_used.contains(&extension) {
                 extensions_used.push(extension);
@@ -321,15 +559,17 @@ pub(super) fn export_document(
         root.materials.push(material);
     }
     let mut geometry = GeometryWriter::after(file, &root);
+    textures.finish(file, &desc.images, &mut root, &mut geometry)?;
     let mut nodes = Vec::new();
     for mesh in &desc.meshes {
         let normals = (!mesh.normals.is_empty()).then_some(mesh.normals.as_slice());
-        let index = geometry.mesh(
+        let index = geometry.mesh_with(
             &mesh.node_name,
             &mesh.positions,
             normals,
             &mesh.indices,
             Some(mesh.material),
+            Some(mesh),
         )?;
         nodes.push(json::Node {
             name: Some(mesh.node_name.clone()),
