@@ -202,15 +202,11 @@ pub(super) fn check_mesh(
             "has {} tangents for {vertices} positions, or one not finite",
             mesh.tangents.len()
         ))
-    } else if let Some(set) = texture_sets
-        .iter()
-        .find(|&&set| mesh.texcoords.get(set).is_none_or(Vec::is_empty))
-    {
-        Some(format!(
-            "its material has a texture on TEXCOORD_{set}, which it lacks"
-        ))
     } else {
-        None
+        texture_sets
+            .iter()
+            .find(|&&set| mesh.texcoords.get(set).is_none_or(Vec::is_empty))
+            .map(|set| format!("its material has a texture on TEXCOORD_{set}, which it lacks"))
     };
     match problem {
         Some(reason) => Err(invalid(file, at, reason)),
