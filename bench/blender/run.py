@@ -21,6 +21,7 @@ Diffuse BSDF with the same colour input, the material the glTF file describes.
 """
 
 import argparse
+import json
 import math
 import os
 import subprocess
@@ -32,6 +33,7 @@ import numpy as np
 WIDTH, HEIGHT = 192, 144
 BLOCK = 8
 TRIANGULATE = "--triangulate" in sys.argv
+INTERPOLATION = "Linear" if "Linear" in sys.argv else "Closest"
 
 
 def args():
@@ -43,6 +45,16 @@ def args():
     p.add_argument("--pv-spp", type=int, default=1024, help="portalview spp per seed")
     p.add_argument("--strategy", default="antishadow")
     p.add_argument("--triangulate", action="store_true", help="Suzanne's quads as triangles")
+    p.add_argument(
+        "--mitsuba-python",
+        help="a Python with Mitsuba 3.9 (e.g. bench/peers/.venv/bin/python): also render with it",
+    )
+    p.add_argument(
+        "--interpolation",
+        default="Closest",
+        choices=["Closest", "Linear"],
+        help="the floor texture's filter (Cycles interpolates 8-bit sRGB before decoding it)",
+    )
     p.add_argument("--no-texture", action="store_true", help="plain floor colour")
     return p.parse_args(argv)
 
@@ -58,7 +70,7 @@ def material(name, color, image=None):
     if image is not None:
         tex = m.node_tree.nodes.new("ShaderNodeTexImage")
         tex.image = image
-        tex.interpolation = "Linear"
+        tex.interpolation = INTERPOLATION
         m.node_tree.links.new(tex.outputs["Color"], bsdf.inputs["Base Color"])
     return m
 
@@ -177,6 +189,90 @@ def export(path):
     )
 
 
+def write_ply(path, tris, uvs):
+    """Triangles (n, 3, 3) with per-corner uvs (n, 3, 2) as a binary PLY, vertices unshared."""
+    n = len(tris)
+    verts = np.concatenate([np.reshape(tris, (-1, 3)), np.reshape(uvs, (-1, 2))], axis=1)
+    faces = np.zeros(n, dtype=[("k", "u1"), ("i", "<i4", 3)])
+    faces["k"] = 3
+    faces["i"] = np.arange(3 * n).reshape(n, 3)
+    header = (
+        "ply\nformat binary_little_endian 1.0\n"
+        f"element vertex {3 * n}\nproperty float x\nproperty float y\nproperty float z\n"
+        "property float u\nproperty float v\n"
+        f"element face {n}\nproperty list uchar int vertex_indices\nend_header\n"
+    )
+    with open(path, "wb") as f:
+        f.write(header.encode())
+        f.write(verts.astype("<f4").tobytes())
+        f.write(faces.tobytes())
+
+
+def mitsuba_scene(out):
+    """The Blender scene as Mitsuba 3 sees it (for mitsuba_render.py): world-space PLYs,
+    Lambertian `diffuse` colours or bitmaps, one-sided area emitters (a double-sided bulb is two,
+    back to back), point lamps of P/(4π) W/sr, and the camera (Mitsuba looks down +Z with +X to
+    the left: to_world = camera matrix x diag(-1, 1, -1, 1))."""
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    shapes, points = [], []
+    for obj in bpy.context.scene.objects:
+        if obj.type == "LIGHT":
+            p = obj.data.energy / (4 * math.pi)
+            points.append(
+                {"position": list(obj.matrix_world.translation), "intensity": [p * c for c in obj.data.color]}
+            )
+        if obj.type != "MESH" or "portal_target" in obj:
+            continue
+        ev = obj.evaluated_get(depsgraph)
+        mesh = ev.to_mesh()
+        mesh.calc_loop_triangles()
+        m = np.array(obj.matrix_world)
+        uv_layer = mesh.uv_layers.active.data if mesh.uv_layers.active else None
+        tris, uvs = [], []
+        for t in mesh.loop_triangles:
+            tris.append([(m @ np.array([*mesh.vertices[v].co, 1.0]))[:3] for v in t.vertices])
+            uvs.append([tuple(uv_layer[l].uv) if uv_layer else (0.0, 0.0) for l in t.loops])
+        ev.to_mesh_clear()
+        ply = os.path.join(out, f"mitsuba-{obj.name}.ply")
+        write_ply(ply, tris, uvs)
+        nodes = obj.active_material.node_tree.nodes
+        shape = {"ply": ply, "color": [0.0, 0.0, 0.0]}
+        if "Emission" in nodes:
+            e = nodes["Emission"].inputs
+            shape["radiance"] = [e["Strength"].default_value * c for c in e["Color"].default_value[:3]]
+            n = np.cross(np.subtract(tris[0][1], tris[0][0]), np.subtract(tris[0][2], tris[0][0]))
+            n = n / np.linalg.norm(n)
+            back = os.path.join(out, f"mitsuba-{obj.name}-back.ply")
+            # Mitsuba's area emitters are one-sided: a flipped copy 0.1 mm behind emits the
+            # other way, and rays from the back meet it first.
+            write_ply(back, [[np.subtract(p, 1e-4 * n) for p in t] for t in tris], uvs)
+            shapes.append(dict(shape, ply=back, flip=True))
+        else:
+            p = nodes["Principled BSDF"].inputs["Base Color"]
+            shape["color"] = list(p.default_value[:3])
+            if p.links:
+                tex = p.links[0].from_node
+                shape["texture"] = bpy.path.abspath(tex.image.filepath_raw)
+                shape["filter"] = "bilinear" if tex.interpolation == "Linear" else "nearest"
+        shapes.append(shape)
+    cam = bpy.context.scene.camera
+    to_world = np.array(cam.matrix_world) @ np.diag([-1.0, 1.0, -1.0, 1.0])
+    desc = {
+        "camera": {
+            "to_world": to_world.tolist(),
+            "fov_x_degrees": math.degrees(cam.data.angle_x),
+            "width": WIDTH,
+            "height": HEIGHT,
+        },
+        "shapes": shapes,
+        "points": points,
+    }
+    path = os.path.join(out, "mitsuba.json")
+    with open(path, "w") as f:
+        json.dump(desc, f, indent=1)
+    return path
+
+
 def principled_to_diffuse():
     """The glTF file describes Lambertian surfaces; Cycles' Diffuse BSDF is one."""
     for m in bpy.data.materials:
@@ -223,28 +319,26 @@ def luminance(rgb):
     return rgb @ np.array([0.2126, 0.7152, 0.0722])
 
 
-def compare(cy, pv, label):
-    """Mean ratio with its standard error, and per-block z-scores of the difference."""
-    a = np.mean(cy, axis=0)
-    b = np.mean(pv, axis=0)
-    # Each renderer's per-pixel variance of the two-seed mean, from the seeds' difference.
-    var = ((cy[0] - cy[1]) ** 2 + (pv[0] - pv[1]) ** 2) / 4.0
-    la, lb = luminance(a), luminance(b)
-    lvar = luminance(np.sqrt(var)) ** 2
-    h, w = la.shape
-    rows = []
-    diff = lb.mean() - la.mean()
-    se = math.sqrt(lvar.sum()) / la.size
-    rows.append((label, la.mean(), lb.mean(), diff / la.mean(), se / la.mean()))
+def compare(ref, other):
+    """Relative difference of the image means with its standard error, and per-block z-scores.
+
+    Each renderer made two renders with different seeds; the variance of a pixel's two-seed
+    mean is estimated from their difference, d^2 / 4, for both renderers."""
+    lr, lo = luminance(ref), luminance(other)
+    a, b = lr.mean(axis=0), lo.mean(axis=0)
+    var = ((lr[0] - lr[1]) ** 2 + (lo[0] - lo[1]) ** 2) / 4.0
+    rel = (b.mean() - a.mean()) / a.mean()
+    se = math.sqrt(var.sum()) / a.size / a.mean()
+    h, w = a.shape
     z = []
     for y in range(0, h - BLOCK + 1, BLOCK):
         for x in range(0, w - BLOCK + 1, BLOCK):
-            sa, sb = la[y : y + BLOCK, x : x + BLOCK], lb[y : y + BLOCK, x : x + BLOCK]
-            sv = lvar[y : y + BLOCK, x : x + BLOCK].sum()
+            sa, sb = a[y : y + BLOCK, x : x + BLOCK], b[y : y + BLOCK, x : x + BLOCK]
             if sa.mean() < 1e-4 and sb.mean() < 1e-4:
-                continue
+                continue  # black in both: nothing to compare
+            sv = var[y : y + BLOCK, x : x + BLOCK].sum()
             z.append((sb.mean() - sa.mean()) / (math.sqrt(sv) / sa.size + 1e-12))
-    return rows[0], np.array(z)
+    return (a.mean(), b.mean(), rel, se), np.array(z)
 
 
 def main():
@@ -254,12 +348,15 @@ def main():
     build_scene(out, not a.no_texture)
     gltf = os.path.join(out, "scene.gltf")
     export(gltf)
+    mitsuba_json = mitsuba_scene(out) if a.mitsuba_python else None
     principled_to_diffuse()
-    cy, pv = [], []
+    images = {"Cycles": [], "portalview": []}
+    if mitsuba_json:
+        images["Mitsuba"] = []
     for seed in (1, 2):
         path = os.path.join(out, f"cycles-{seed}.exr")
         render_cycles(path, a.spp, seed)
-        cy.append(load_exr(path))
+        images["Cycles"].append(load_exr(path))
         path = os.path.join(out, f"portalview-{seed}.exr")
         subprocess.run(
             [
@@ -269,25 +366,39 @@ def main():
             ],
             check=True,
         )
-        pv.append(load_exr(path))
-    cy, pv = np.array(cy), np.array(pv)
-    (label, ma, mb, rel, se), z = compare(cy, pv, "whole image")
-    print(f"\n{'region':<14} {'Cycles':>9} {'portalview':>11} {'difference':>11} {'std. error':>11}")
-    print(f"{label:<14} {ma:9.5f} {mb:11.5f} {100 * rel:+10.3f}% {100 * se:10.3f}%")
-    print(
-        f"{len(z)} blocks of {BLOCK}x{BLOCK}: |z| > 3 in {np.mean(np.abs(z) > 3) * 100:.1f}%,"
-        f" |z| > 5 in {np.mean(np.abs(z) > 5) * 100:.1f}%, mean z {z.mean():+.2f}, "
-        f"largest |z| {np.abs(z).max():.1f}"
-    )
-    save_png(os.path.join(out, "comparison.png"), cy.mean(axis=0), pv.mean(axis=0), cy, pv)
+        images["portalview"].append(load_exr(path))
+        if mitsuba_json:
+            path = os.path.join(out, f"mitsuba-{seed}.npy")
+            here = os.path.dirname(os.path.abspath(__file__))
+            subprocess.run(
+                [a.mitsuba_python, os.path.join(here, "mitsuba_render.py"), mitsuba_json, path,
+                 str(a.spp), str(seed)],
+                check=True,
+            )
+            images["Mitsuba"].append(np.load(path))
+    images = {k: np.array(v) for k, v in images.items()}
+    print(f"\n{'reference':<10} {'renderer':<11} {'ref. mean':>10} {'mean':>9} {'difference':>11} "
+          f"{'std. error':>11}   8x8 blocks: |z|>3  |z|>5  max |z|")
+    pairs = [("Cycles", "portalview"), ("Cycles", "Mitsuba"), ("Mitsuba", "portalview")]
+    for ref, other in pairs:
+        if ref not in images or other not in images:
+            continue
+        (ma, mb, rel, se), z = compare(images[ref], images[other])
+        print(
+            f"{ref:<10} {other:<11} {ma:10.5f} {mb:9.5f} {100 * rel:+10.3f}% {100 * se:10.3f}%"
+            f"   {len(z):4d} blocks {np.mean(np.abs(z) > 3) * 100:5.1f}% {np.mean(np.abs(z) > 5) * 100:5.1f}%"
+            f" {np.abs(z).max():6.1f}"
+        )
+        save_png(os.path.join(out, f"{ref}-vs-{other}.png"), images[ref], images[other])
 
 
-def save_png(path, a, b, cy, pv):
-    """Cycles | portalview | per-pixel z of the difference (red: portalview brighter)."""
-    var = ((cy[0] - cy[1]) ** 2 + (pv[0] - pv[1]) ** 2) / 4.0
+def save_png(path, cy, pv):
+    """Reference | other | per-pixel z of the difference (red: the other brighter)."""
+    a, b = cy.mean(axis=0), pv.mean(axis=0)
+    lc, lp = luminance(cy), luminance(pv)
     # One seed pair's variance estimate per pixel is too noisy to divide by: average it over
     # the pixel's 5x5 neighbourhood.
-    lvar = luminance(np.sqrt(var)) ** 2
+    lvar = ((lc[0] - lc[1]) ** 2 + (lp[0] - lp[1]) ** 2) / 4.0
     pad = np.pad(lvar, 2, mode="edge")
     smooth = sum(
         pad[dy : dy + lvar.shape[0], dx : dx + lvar.shape[1]] for dy in range(5) for dx in range(5)
