@@ -33,6 +33,7 @@ import numpy as np
 WIDTH, HEIGHT = 192, 144
 BLOCK = 8
 TRIANGULATE = "--triangulate" in sys.argv
+BULB = "disc" if "disc" in sys.argv else "sphere"
 INTERPOLATION = "Linear" if "Linear" in sys.argv else "Closest"
 
 
@@ -54,6 +55,9 @@ def args():
         default="Closest",
         choices=["Closest", "Linear"],
         help="the floor texture's filter (Cycles interpolates 8-bit sRGB before decoding it)",
+    )
+    p.add_argument(
+        "--bulb", default="sphere", choices=["sphere", "disc"], help="the emissive mesh's shape"
     )
     p.add_argument("--no-texture", action="store_true", help="plain floor colour")
     return p.parse_args(argv)
@@ -120,8 +124,8 @@ def build_scene(out, textured):
     if TRIANGULATE:
         suzanne.modifiers.new("Triangulate", "TRIANGULATE")
 
-    # The lampshade: an open 12-sided cylinder, a double-sided emissive disc inside, and a
-    # portal on each opening naming the disc.
+    # The lampshade: an open 12-sided cylinder, an emissive bulb (a sphere or a disc), and a
+    # portal on each opening naming the bulb.
     shade_at = (1.3, 0.6, 1.5)
     bpy.ops.mesh.primitive_cylinder_add(
         vertices=12, radius=0.35, depth=0.5, end_fill_type="NOTHING", location=shade_at
@@ -130,7 +134,14 @@ def build_scene(out, textured):
     shade.name = "Shade"
     shade.data.materials.append(material("Shade", (0.9, 0.9, 0.85)))
 
-    bpy.ops.mesh.primitive_circle_add(vertices=12, radius=0.15, fill_type="NGON", location=shade_at)
+    if BULB == "sphere":
+        bpy.ops.mesh.primitive_uv_sphere_add(
+            segments=12, ring_count=6, radius=0.12, location=shade_at
+        )
+    else:
+        bpy.ops.mesh.primitive_circle_add(
+            vertices=12, radius=0.15, fill_type="NGON", location=shade_at
+        )
     bulb = bpy.context.object
     bulb.name = "Bulb"
     bulb.data.materials.append(emission("Bulb", (1.0, 0.9, 0.7), 40.0))
@@ -240,13 +251,16 @@ def mitsuba_scene(out):
         if "Emission" in nodes:
             e = nodes["Emission"].inputs
             shape["radiance"] = [e["Strength"].default_value * c for c in e["Color"].default_value[:3]]
-            n = np.cross(np.subtract(tris[0][1], tris[0][0]), np.subtract(tris[0][2], tris[0][0]))
-            n = n / np.linalg.norm(n)
-            back = os.path.join(out, f"mitsuba-{obj.name}-back.ply")
-            # Mitsuba's area emitters are one-sided: a flipped copy 0.1 mm behind emits the
-            # other way, and rays from the back meet it first.
-            write_ply(back, [[np.subtract(p, 1e-4 * n) for p in t] for t in tris], uvs)
-            shapes.append(dict(shape, ply=back, flip=True))
+            t = np.array(tris)
+            n = np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
+            n /= np.linalg.norm(n, axis=1, keepdims=True)
+            if np.all(n @ n[0] > 0.9999):
+                # A flat emitter is seen from both sides, but Mitsuba's area emitters are
+                # one-sided: a flipped copy 0.1 mm behind emits the other way, and rays from
+                # the back meet it first. (A closed bulb's inside is never seen.)
+                back = os.path.join(out, f"mitsuba-{obj.name}-back.ply")
+                write_ply(back, t - 1e-4 * n[0], uvs)
+                shapes.append(dict(shape, ply=back, flip=True))
         else:
             p = nodes["Principled BSDF"].inputs["Base Color"]
             shape["color"] = list(p.default_value[:3])
