@@ -241,6 +241,20 @@ mod tests {
                 assert!(n.abs_diff_eq(geometric, 1e-6), "{n} vs {geometric}");
             }
         }
+        // A tangent moves like a direction; the mirror flips its bitangent sign, so that
+        // `w · (N × T)` is the mirrored bitangent (+Y here, as before the mirror).
+        let geometry = Geometry {
+            tangents: Some(vec![Vec4::new(1.0, 0.0, 0.0, 1.0); 3]),
+            ..unit_triangle(true)
+        };
+        let Some(mesh) = world_mesh(geometry, mirror, "m".into(), 0) else {
+            panic!("finite input");
+        };
+        for (t, n) in mesh.tangents.iter().zip(&mesh.normals) {
+            assert!(t.abs_diff_eq(Vec4::new(-1.0, 0.0, 0.0, -1.0), 1e-6), "{t}");
+            let bitangent = t.w * n.cross(t.truncate());
+            assert!(bitangent.abs_diff_eq(Vec3::Y, 1e-6), "{bitangent}");
+        }
     }
 
     #[test]
