@@ -3,7 +3,7 @@
 //! blurs, which the path tracer's many samples per pixel average out), `KHR_texture_transform`,
 //! and the colour decoding (sRGB to linear for colours, raw values for data).
 
-use glam::{Vec2, Vec3, Vec4};
+use glam::{Vec2, Vec4};
 use std::sync::{Arc, OnceLock};
 
 /// The widest or tallest image read; larger ones are refused with an error.
@@ -229,14 +229,6 @@ impl Image {
                 top.lerp(bottom, fy)
             }
         }
-    }
-
-    /// The mean of the decoded texels' RGB.
-    pub fn mean(&self, encoding: Encoding) -> Vec3 {
-        let sum = self.texels.iter().fold(glam::DVec3::ZERO, |s, &t| {
-            s + decode(t, encoding).truncate().as_dvec3()
-        });
-        (sum / self.texels.len().max(1) as f64).as_vec3()
     }
 }
 

@@ -5,6 +5,7 @@ use glam::Vec3;
 use std::time::Instant;
 
 use super::stats::{Stats, TIMING_STRIDE, timer_overhead};
+use crate::asset::desc::AlphaMode;
 use crate::light::area::LightPoint;
 use crate::light::estimator::{LightContext, LightSample, LightSampler, PickedLight};
 use crate::light::{Strategy, Technique};
@@ -92,7 +93,7 @@ impl<'a> Integrator<'a> {
                     .light_surfaces
                     .iter()
                     .flatten()
-                    .all(|s| s.surface.alpha_mode == crate::asset::desc::AlphaMode::Opaque),
+                    .all(|s| s.surface.alpha_mode == AlphaMode::Opaque),
         }
     }
 

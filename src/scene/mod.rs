@@ -6,7 +6,7 @@ use glam::{Vec2, Vec3, Vec4};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use crate::asset::desc::MeshDesc;
+use crate::asset::desc::{AlphaMode, MeshDesc};
 use crate::asset::desc::{LampKind, PortalDesc, SceneDesc};
 use crate::asset::{builtin, gltf};
 use crate::camera::Camera;
@@ -135,8 +135,8 @@ impl LightSurface {
     /// The factor on the radiance at texture coordinates `uvs`.
     pub fn scale_at(&self, uvs: &[Vec2; 2]) -> Vec3 {
         let coverage = match self.surface.alpha_mode {
-            crate::asset::desc::AlphaMode::Opaque => 1.0,
-            crate::asset::desc::AlphaMode::Mask { .. } => {
+            AlphaMode::Opaque => 1.0,
+            AlphaMode::Mask { .. } => {
                 if self.surface.is_present(uvs, || 0.0) {
                     1.0
                 } else {
@@ -144,7 +144,7 @@ impl LightSurface {
                 }
             }
             // Coverage on average: a BSDF ray meets the light with probability alpha.
-            crate::asset::desc::AlphaMode::Blend => self.surface.alpha(uvs).clamp(0.0, 1.0),
+            AlphaMode::Blend => self.surface.alpha(uvs).clamp(0.0, 1.0),
         };
         self.surface.emission_scale(uvs) * coverage
     }
@@ -295,10 +295,8 @@ impl Scene {
                     material.double_sided,
                     &corners,
                 ));
-                let varies = surface.filter(|s| {
-                    s.has_emission_texture()
-                        || s.alpha_mode != crate::asset::desc::AlphaMode::Opaque
-                });
+                let varies = surface
+                    .filter(|s| s.has_emission_texture() || s.alpha_mode != AlphaMode::Opaque);
                 light_surfaces.push(varies.map(|s| LightSurface {
                     triangles: light_triangles,
                     surface: s.clone(),
@@ -336,7 +334,7 @@ impl Scene {
         let cutout_surfaces: Vec<SurfaceTextures> = surfaces
             .iter()
             .flatten()
-            .filter(|s| s.alpha_mode != crate::asset::desc::AlphaMode::Opaque)
+            .filter(|s| s.alpha_mode != AlphaMode::Opaque)
             .cloned()
             .collect();
         if !cutout_surfaces.is_empty() {
@@ -344,7 +342,7 @@ impl Scene {
             let mut next = 0;
             for (m, s) in surfaces.iter().enumerate() {
                 if s.as_ref()
-                    .is_some_and(|s| s.alpha_mode != crate::asset::desc::AlphaMode::Opaque)
+                    .is_some_and(|s| s.alpha_mode != AlphaMode::Opaque)
                 {
                     slot[m] = next;
                     next += 1;
