@@ -72,13 +72,27 @@ pub enum Wrap {
 
 impl Wrap {
     /// The texel index for index `i` (any integer) of a row or column of `n` texels.
+    #[inline]
     pub fn index(self, i: i64, n: u32) -> u32 {
         let n = n as i64;
+        // Lookups pass indices within a period or two of the image (coordinates are reduced
+        // first): compare and shift there, and divide only beyond.
+        let modulo = |i: i64, m: i64| {
+            if (0..m).contains(&i) {
+                i
+            } else if (-m..0).contains(&i) {
+                i + m
+            } else if (m..2 * m).contains(&i) {
+                i - m
+            } else {
+                i.rem_euclid(m)
+            }
+        };
         let j = match self {
-            Wrap::Repeat => i.rem_euclid(n),
+            Wrap::Repeat => modulo(i, n),
             Wrap::ClampToEdge => i.clamp(0, n - 1),
             Wrap::MirroredRepeat => {
-                let j = i.rem_euclid(2 * n);
+                let j = modulo(i, 2 * n);
                 if j < n { j } else { 2 * n - 1 - j }
             }
         };
