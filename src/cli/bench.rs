@@ -72,7 +72,7 @@ pub struct BenchArgs {
     #[arg(long, value_enum, default_value_t = BenchPart::All)]
     pub only: BenchPart,
     /// The relMSE that "time to an equal error" waits for.
-    #[arg(long, default_value_t = 1e-3)]
+    #[arg(long, default_value_t = 1e-4)]
     pub target_relmse: f64,
     /// Pass time after which a run that has not reached the target is stopped and its time
     /// extrapolated (as relMSE ∝ 1/time).
