@@ -27,8 +27,9 @@ pub const PASSES_PER_EPOCH: u32 = 1 << LOG2_PASSES;
 /// counter of draws.
 #[derive(Clone, Debug)]
 pub struct ZSobol {
-    /// `morton(x, y) << LOG2_PASSES | pass`, unscrambled.
-    index: u64,
+    /// `morton(x, y) << LOG2_PASSES | pass`, unscrambled, bit-reversed (as the scramble
+    /// takes it; reversed once here rather than at every draw).
+    index_rev: u64,
     /// The seed and epoch, hashed.
     key: u64,
     /// Draws so far: each one is its own (padded) dimension.
@@ -41,7 +42,7 @@ impl ZSobol {
         let epoch = (pass >> LOG2_PASSES) as u64;
         let index = (morton2(x, y) << LOG2_PASSES) | (pass & (PASSES_PER_EPOCH - 1)) as u64;
         ZSobol {
-            index,
+            index_rev: index.reverse_bits(),
             key: mix_bits(seed ^ mix_bits(epoch.wrapping_add(0x5851_F42D_4C95_7F2D))),
             dimension: 0,
         }
@@ -52,7 +53,7 @@ impl ZSobol {
     fn next_draw(&mut self) -> (u64, u64) {
         let h = mix_bits(self.key ^ self.dimension.wrapping_mul(0x9E37_79B9_7F4A_7C15));
         self.dimension += 1;
-        let index = nested_scramble(self.index, h);
+        let index = nested_scramble_rev(self.index_rev, h).reverse_bits();
         (index, mix_bits(h))
     }
 
@@ -142,13 +143,19 @@ pub fn owen_scramble_rev(mut v: u32, seed: u32) -> u32 {
 /// low (pass) bits of a pixel are permuted by its own high (Morton) bits.
 #[inline]
 pub fn nested_scramble(index: u64, seed: u64) -> u64 {
-    let mut v = index.reverse_bits();
+    nested_scramble_rev(index.reverse_bits(), seed).reverse_bits()
+}
+
+/// [`nested_scramble`] on the bit-reversed index, returning it bit-reversed: each step flips
+/// a bit by a function of the bits below it.
+#[inline]
+pub fn nested_scramble_rev(mut v: u64, seed: u64) -> u64 {
     v ^= v.wrapping_mul(0x3d20_adea_9b5c_6f12);
     v = v.wrapping_add(seed);
     v = v.wrapping_mul((seed >> 32) | 1);
     v ^= v.wrapping_mul(0x0552_6c56_e1a4_c3d6);
     v ^= v.wrapping_mul(0x53a2_2864_27f0_5b8a);
-    v.reverse_bits()
+    v
 }
 
 /// A 64-bit finaliser (pbrt's `MixBits`): every input bit affects every output bit.
