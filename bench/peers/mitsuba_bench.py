@@ -15,9 +15,10 @@ For each `assets/*.glb` this script
   3. renders it with Mitsuba at 256×256 after a warm-up render (which JIT-compiles the
      kernels), twice at 1024 spp with different seeds: samples/s, and the MSE of one render
      as half the mean squared difference of the two (independent, unbiased renders);
-  4. renders it with portalview (light and antishadow sampling): samples/s, and the samples
-     per pixel, hence the time, at which its MSE (also from pairs of renders with different
-     seeds) reaches Mitsuba's 1024-spp MSE;
+  4. renders it with portalview (light and antishadow sampling, its default Sobol' sampler):
+     samples/s, and the samples per pixel, hence the time, at which its MSE (also from pairs of
+     renders with different seeds, at 1, 4, 16, ... spp, interpolated) reaches Mitsuba's
+     1024-spp MSE. Rates are the faster render of each pair, for both renderers;
   5. checks that the two renderers' images agree: per 16×16 block, the difference of the
      means over its standard error (from the pairs), and the ratio of the image means.
 
@@ -297,26 +298,31 @@ def pair_mse(a, b):
 
 def portalview_time_to(binary, glb, strategy, sampler, target, tmp, max_spp):
     """spp and seconds at which portalview's MSE reaches `target`, and its samples/s.
-    MSE at a pilot spp, then at the spp the 1/spp law predicts (a power of two, so that the
-    Sobol' prefix is a full net); the crossing is interpolated in log–log between the two
-    (or extrapolated by 1/spp past `max_spp`)."""
+    Pairs of renders at 1, 4, 16, ... spp (powers of two, so that a Sobol' prefix is a full
+    net) until the pair's MSE is at most `target`; the crossing is interpolated in log–log
+    between the last two (or extrapolated by 1/spp past `max_spp`). The rate is the faster of
+    the last pair's two renders (the machine may be shared)."""
     def pair(spp):
         a, ta = portalview_render(binary, glb, strategy, sampler, spp, 1, tmp / "a.exr")
         b, tb = portalview_render(binary, glb, strategy, sampler, spp, 2, tmp / "b.exr")
-        return pair_mse(a, b), SIZE * SIZE * spp * 2 / (ta + tb), (a + b) / 2, (a, b)
+        return pair_mse(a, b), SIZE * SIZE * spp / min(ta, tb), (a, b)
 
-    n0 = 32
-    mse0, rate0, mean0, _ = pair(n0)
-    predicted = n0 * mse0 / target
-    n1 = int(min(max_spp, max(2 * n0, 2 ** math.ceil(math.log2(max(predicted, 1))))))
-    mse1, rate1, mean1, pair1 = pair(n1)
-    if mse1 <= target and mse0 > mse1:
-        slope = math.log(mse0 / mse1) / math.log(n1 / n0)
-        spp = n0 * (mse0 / target) ** (1.0 / slope)
+    previous, n = None, 1
+    while True:
+        mse, rate, renders = pair(n)
+        if mse <= target or n >= max_spp:
+            break
+        previous, n = (n, mse), n * 4
+    if mse > target:
+        spp = n * mse / target
+    elif previous is None:
+        spp = n
     else:
-        spp = n1 * mse1 / target
+        n0, mse0 = previous
+        slope = math.log(mse0 / mse) / math.log(n / n0) if mse0 > mse else 1.0
+        spp = n0 * (mse0 / target) ** (1.0 / max(slope, 1e-3))
     spp = max(spp, 1.0)
-    return spp, spp * SIZE * SIZE / rate1, rate1, pair1
+    return spp, spp * SIZE * SIZE / rate, rate, renders
 
 
 def agreement(mit, pv):
@@ -368,7 +374,8 @@ def main():
             a, ta = mitsuba_render(mi, dr, scene, args.spp, 1)
             b, tb = mitsuba_render(mi, dr, scene, args.spp, 2)
             target = pair_mse(a, b)
-            mitsuba_rate = SIZE * SIZE * args.spp * 2 / (ta + tb)
+            # The faster of the two (the machine may be shared), as for portalview.
+            mitsuba_rate = SIZE * SIZE * args.spp / min(ta, tb)
             mitsuba_time = SIZE * SIZE * args.spp / mitsuba_rate
             rows.append((name, "Mitsuba 3 llvm_ad_rgb", mitsuba_rate, args.spp, mitsuba_time, target))
             print(f"{name}: Mitsuba {mitsuba_rate / 1e6:.2f} M samples/s, MSE at {args.spp} spp {target:.3e}", flush=True)
