@@ -217,7 +217,8 @@ impl PortalViewApp {
         &mut self.compare
     }
 
-    fn render_settings(&self) -> RenderSettings {
+    /// What the render worker is asked to render with (the viewer's settings).
+    pub fn render_settings(&self) -> RenderSettings {
         RenderSettings {
             strategy: self.settings.strategy,
             alpha: self.settings.alpha,
