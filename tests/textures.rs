@@ -582,7 +582,7 @@ fn emissive_texture_shapes_the_light_and_its_image() {
         portalview::render::integrator::RenderSettings::default(),
     );
     let mut stats = portalview::render::stats::Stats::default();
-    let mut rng = portalview::sampling::Rng::new(1, 1);
+    let mut rng = portalview::sampling::Sampler::from(portalview::sampling::Rng::new(1, 1));
     for (x, expected) in [(-0.05, le), (0.45, 0.0)] {
         let l = integrator.radiance(Vec3::new(x, 0.5, 0.05), Vec3::Y, &mut rng, &mut stats);
         assert!((l.x - expected).abs() < 1e-5, "emitter at x = {x}: {l}");
