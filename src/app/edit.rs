@@ -130,10 +130,11 @@ impl PortalEditor {
                 polygon.vertices().iter().map(|&p| p + offset).collect()
             }
             None => {
-                let (lo, hi) = l.corners().fold(
-                    (Vec3::INFINITY, Vec3::NEG_INFINITY),
-                    |(lo, hi), p| (lo.min(p), hi.max(p)),
-                );
+                let (lo, hi) = l
+                    .corners()
+                    .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), p| {
+                        (lo.min(p), hi.max(p))
+                    });
                 let half = 0.5 * (hi - lo).max_element().max(1e-6);
                 let c = Vec3::new(0.5 * (lo.x + hi.x), lo.y - half, 0.5 * (lo.z + hi.z));
                 [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)]

@@ -117,7 +117,13 @@ impl Current {
         }
         // A light of any other shape (a bulb, a tube) as its triangles, up to a budget.
         let mut budget = MAX_LIGHT_TRIANGLES_DRAWN;
-        for light in self.rendered.geometry.lights.iter().filter(|l| l.polygon.is_none()) {
+        for light in self
+            .rendered
+            .geometry
+            .lights
+            .iter()
+            .filter(|l| l.polygon.is_none())
+        {
             for [a, b, c] in light.triangles().take(budget) {
                 budget -= 1;
                 for (p, q) in [(a, b), (b, c), (c, a)] {

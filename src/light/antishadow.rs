@@ -228,7 +228,10 @@ impl AntishadowPlanes {
     /// solid is cut behind the portal plane; the portal-edge planes are those of §3.2 against
     /// its vertices; the others come from the solid's faces and from the planes through a
     /// portal vertex and two of its vertices that leave it on one side.
-    pub fn new_hull(portal: &ConvexPolygon, light_points: &[Vec3]) -> Result<Self, AntishadowError> {
+    pub fn new_hull(
+        portal: &ConvexPolygon,
+        light_points: &[Vec3],
+    ) -> Result<Self, AntishadowError> {
         let scale = f64::from(diameter(portal.vertices().iter().chain(light_points)));
         let strict = STRICT_TOLERANCE * scale;
         let tol = SIDE_TOLERANCE * scale;
@@ -421,7 +424,11 @@ impl AntishadowPlanes {
             .chain(&self.portal_overlap)
             .chain(&self.antiantumbra)
             .chain(&self.light_overlap)
-            .chain(self.hull.iter().flat_map(|h| h.outside.iter().chain(&h.antiantumbra)))
+            .chain(
+                self.hull
+                    .iter()
+                    .flat_map(|h| h.outside.iter().chain(&h.antiantumbra)),
+            )
             .map(|q| q.signed_distance(x).abs())
             .fold(f32::INFINITY, f32::min)
     }
@@ -753,8 +760,14 @@ fn hull_in_plane(points: &[DVec3], n: DVec3) -> Vec<DVec3> {
     for pass in 0..2 {
         let start = hull.len();
         for k in 0..flat.len() {
-            let p = if pass == 0 { flat[k] } else { flat[flat.len() - 1 - k] };
-            while hull.len() >= start + 2 && cross(&hull[hull.len() - 2], &hull[hull.len() - 1], &p) <= 0.0 {
+            let p = if pass == 0 {
+                flat[k]
+            } else {
+                flat[flat.len() - 1 - k]
+            };
+            while hull.len() >= start + 2
+                && cross(&hull[hull.len() - 2], &hull[hull.len() - 1], &p) <= 0.0
+            {
                 hull.pop();
             }
             hull.push(p);

@@ -40,10 +40,12 @@ impl AreaLight {
         let by_area = Distribution1D::new(triangles.iter().map(|(_, n)| 0.5 * n.length()));
         let area = by_area.total();
         let corners: Vec<[Vec3; 3]> = triangles.iter().map(|(t, _)| *t).collect();
-        let (lo, hi) = corners.iter().flatten().fold(
-            (Vec3::INFINITY, Vec3::NEG_INFINITY),
-            |(lo, hi), &p| (lo.min(p), hi.max(p)),
-        );
+        let (lo, hi) = corners
+            .iter()
+            .flatten()
+            .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), &p| {
+                (lo.min(p), hi.max(p))
+            });
         let centre = 0.5 * (lo + hi);
         let radius = corners
             .iter()
@@ -114,16 +116,31 @@ impl AreaLight {
         {
             return None;
         }
-        let mut best: Option<(LightPoint, f32)> = None;
-        for &([a, b, c], n) in &self.triangles {
-            let Some(t) = intersect_triangle(o, d, a, b, c) else {
-                continue;
-            };
-            if best.is_none_or(|(_, bt)| t < bt) {
-                best = Some((LightPoint { p: o + t * d, n }, t));
-            }
+        self.crossings(o, d).min_by(|a, b| a.1.total_cmp(&b.1))
+    }
+
+    /// Every point where the ray `o + t·d` (`t > 0`) crosses the light's triangles, and its `t`.
+    fn crossings(&self, o: Vec3, d: Vec3) -> impl Iterator<Item = (LightPoint, f32)> + '_ {
+        self.triangles.iter().filter_map(move |&([a, b, c], n)| {
+            let t = intersect_triangle(o, d, a, b, c)?;
+            Some((LightPoint { p: o + t * d, n }, t))
+        })
+    }
+
+    /// The solid-angle density of the directions from `x` that [`Self::sample_point`] produces:
+    /// the sum of [`Self::pdf_solid_angle`] over every crossing of the ray, since a ray may cross
+    /// a bulb or a folded panel more than once. The estimator does not need it (it weights the
+    /// point it drew, in area measure: a point behind another part of the light is occluded and
+    /// contributes nothing); tests integrate it over directions.
+    pub fn direction_pdf(&self, x: Vec3, w: Vec3) -> f32 {
+        if let Some(polygon) = &self.polygon {
+            return polygon
+                .intersect(x, w)
+                .map_or(0.0, |t| self.pdf_solid_angle(t, polygon.normal().dot(w)));
         }
-        best
+        self.crossings(x, w)
+            .map(|(y, t)| self.pdf_solid_angle(t, y.n.dot(w)))
+            .sum()
     }
 
     /// Emitted power, W: `π · Le · A`, twice for two-sided lights (luminance-weighted).

@@ -366,6 +366,29 @@ impl LightSampler {
         ctx.alpha * p_light + (1.0 - ctx.alpha) * portals
     }
 
+    /// The density of the directions [`Self::sample`] draws, for tests that integrate or bin
+    /// them: [`Self::pdf`] at the first light hit, plus the light technique's share of the
+    /// density of the points further along `wi` (a ray crosses a bulb twice). The estimator
+    /// weights each sample by [`Self::pdf`] at its own light point instead, which is exact in
+    /// area measure; the two agree for a polygon light.
+    pub fn direction_pdf(&self, scene: &impl LightSet, ctx: &LightContext, wi: Vec3) -> f32 {
+        let hit = self.light_hit(scene, ctx.light, ctx.x, wi);
+        let first = self.light_pdf(scene, ctx.light, wi, hit);
+        let beyond = (scene.lights()[ctx.light].direction_pdf(ctx.x, wi) - first).max(0.0);
+        let light_share = if ctx.uses_portals {
+            let light_terms: f32 = ctx
+                .terms
+                .iter()
+                .filter(|t| t.technique == Technique::Light)
+                .map(|t| t.weight)
+                .sum();
+            ctx.alpha + (1.0 - ctx.alpha) * light_terms
+        } else {
+            1.0
+        };
+        self.pdf(scene, ctx, wi, hit) + light_share * beyond
+    }
+
     /// The light technique's pdf `p_L(wi)` for a direction whose light hit is `hit`.
     pub fn light_pdf(
         &self,

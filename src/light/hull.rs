@@ -151,7 +151,10 @@ fn prism(points: &[DVec3]) -> Vec<HalfSpace> {
         points
             .iter()
             .copied()
-            .max_by(|a, b| a.distance_squared(from).total_cmp(&b.distance_squared(from)))
+            .max_by(|a, b| {
+                a.distance_squared(from)
+                    .total_cmp(&b.distance_squared(from))
+            })
             .unwrap_or(from)
     };
     let p1 = farthest(points[0]);
@@ -177,7 +180,10 @@ fn prism(points: &[DVec3]) -> Vec<HalfSpace> {
         .into_iter()
         .map(|n| HalfSpace {
             n,
-            d: points.iter().map(|&p| n.dot(p)).fold(f64::NEG_INFINITY, f64::max),
+            d: points
+                .iter()
+                .map(|&p| n.dot(p))
+                .fold(f64::NEG_INFINITY, f64::max),
         })
         .collect()
 }
@@ -268,10 +274,17 @@ mod tests {
     #[test]
     fn flat_points_get_their_outline() {
         // A flat L shape: its hull is a pentagon with two faces (both sides) and five sides.
-        let points: Vec<DVec3> = [(0.0, 0.0), (2.0, 0.0), (2.0, 1.0), (1.0, 1.0), (1.0, 2.0), (0.0, 2.0)]
-            .iter()
-            .map(|&(x, y)| DVec3::new(x, y, 3.0))
-            .collect();
+        let points: Vec<DVec3> = [
+            (0.0, 0.0),
+            (2.0, 0.0),
+            (2.0, 1.0),
+            (1.0, 1.0),
+            (1.0, 2.0),
+            (0.0, 2.0),
+        ]
+        .iter()
+        .map(|&(x, y)| DVec3::new(x, y, 3.0))
+        .collect();
         let faces = bounding_half_spaces(&points, HullKind::Exact).unwrap();
         assert_eq!(faces.len(), 2 + 5, "{faces:?}");
         let cut = HalfSpace {
