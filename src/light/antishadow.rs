@@ -942,6 +942,83 @@ mod tests {
         }
     }
 
+    /// Solids of random points (a cloud, 6 to 40 of them, so some take the prism; a third
+    /// straddling the portal plane) behind tilted portals: the planes agree with the brute force
+    /// outside a thin band, and every region occurs.
+    #[test]
+    fn solid_planes_match_brute_force() {
+        use crate::sampling::Rng;
+        let mut rng = Rng::new(41, 42);
+        let mut seen = [0usize; 5];
+        let (mut compared, mut wrong_differs) = (0, 0);
+        for trial in 0..60 {
+            let tilt = Vec3::new(rng.uniform() - 0.5, 1.0, rng.uniform() - 0.5).normalize();
+            let t = tilt.any_orthonormal_vector();
+            let b = tilt.cross(t);
+            let half = 0.05 + 0.4 * rng.uniform();
+            let portal = ConvexPolygon::new(&[
+                -half * t - half * b,
+                half * t - half * b,
+                half * t + half * b,
+                -half * t + half * b,
+            ])
+            .unwrap();
+            // The portal's front is +tilt; the cloud sits below it.
+            let depth = if trial % 3 == 0 { 0.1 } else { 0.6 };
+            let centre = Vec3::new(
+                rng.uniform() - 0.5,
+                -depth - 0.2 * rng.uniform(),
+                rng.uniform() - 0.5,
+            );
+            let count = 6 + (rng.uniform() * 35.0) as usize;
+            let points: Vec<Vec3> = (0..count)
+                .map(|_| {
+                    centre
+                        + 0.6
+                            * Vec3::new(
+                                rng.uniform() - 0.5,
+                                rng.uniform() - 0.5,
+                                rng.uniform() - 0.5,
+                            )
+                })
+                .collect();
+            let Ok(planes) = AntishadowPlanes::new_hull(&portal, &points) else {
+                continue;
+            };
+            assert!(planes.is_hull());
+            // Negative case: the planes of a solid 3 % larger must disagree somewhere.
+            let larger: Vec<Vec3> = points
+                .iter()
+                .map(|&p| centre + 1.03 * (p - centre))
+                .collect();
+            let wrong = AntishadowPlanes::new_hull(&portal, &larger).ok();
+            for _ in 0..400 {
+                let x = Vec3::new(
+                    4.0 * (rng.uniform() - 0.5),
+                    3.0 * rng.uniform() - 0.5,
+                    4.0 * (rng.uniform() - 0.5),
+                );
+                if planes.planes_distance(x) < 1e-4 {
+                    continue;
+                }
+                let region = planes.classify(x);
+                let expected = classify_brute_force_hull(&portal, planes.light_behind_portal(), x);
+                assert_eq!(region, expected, "trial {trial} at {x}");
+                if wrong.as_ref().is_some_and(|w| w.classify(x) != expected) {
+                    wrong_differs += 1;
+                }
+                seen[region as usize] += 1;
+                compared += 1;
+            }
+        }
+        assert!(compared > 15_000, "{compared}");
+        assert!(
+            wrong_differs > 50,
+            "a 3 % larger solid went unnoticed: {wrong_differs}"
+        );
+        assert!(seen.iter().all(|&c| c > 100), "{seen:?}");
+    }
+
     #[test]
     fn region_names() {
         let names: Vec<&str> = Region::ALL.iter().map(|r| r.name()).collect();
