@@ -73,7 +73,7 @@ fn irradiance(
 ) -> (f64, f64) {
     let sampler = LightSampler::new(scene, strategy, alpha);
     let mut ctx = LightContext::new();
-    sampler.fill_context_classified(scene, 0, x, &mut ctx, classify);
+    sampler.fill_context_classified(scene, 0, x, &mut ctx, &classify);
     let bvh = &scene.geometry.bvh;
     let values: Vec<f64> = (0..n)
         .map(|i| {

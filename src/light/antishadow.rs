@@ -666,7 +666,9 @@ pub fn classify_brute_force(portal: &ConvexPolygon, light: &ConvexPolygon, x: Ve
 pub fn classify_brute_force_hull(portal: &ConvexPolygon, solid: &[Vec3], x: Vec3) -> Region {
     let x = x.as_dvec3();
     let portal_plane = PlaneF64::of(portal);
-    if !(portal_plane.signed_distance(x) > 0.0) {
+    // Written as an "in front" test so that a NaN x is behind, as in `classify`.
+    let in_front_of_portal = portal_plane.signed_distance(x) > 0.0;
+    if !in_front_of_portal {
         return Region::Behind;
     }
     let solid: Vec<DVec3> = solid.iter().map(|v| v.as_dvec3()).collect();
