@@ -9,7 +9,7 @@ use crate::light::area::LightPoint;
 use crate::light::estimator::{LightContext, LightSample, LightSampler, PickedLight};
 use crate::light::{Strategy, Technique};
 use crate::material::Material;
-use crate::sampling::{Frame, Rng, power_heuristic};
+use crate::sampling::{Frame, Sampler, SamplerKind, power_heuristic};
 use crate::scene::bvh::Tracer;
 use crate::scene::{NO_LIGHT, Scene};
 
@@ -22,6 +22,8 @@ pub struct RenderSettings {
     /// Path vertices after the camera: 1 = direct light only (the thesis's experiments).
     pub max_depth: u32,
     pub seed: u64,
+    /// Where the random numbers come from.
+    pub sampler: SamplerKind,
 }
 
 impl Default for RenderSettings {
@@ -31,6 +33,7 @@ impl Default for RenderSettings {
             alpha: None,
             max_depth: 1,
             seed: 0,
+            sampler: SamplerKind::default(),
         }
     }
 }
@@ -106,7 +109,7 @@ impl<'a> Integrator<'a> {
     }
 
     /// Radiance arriving at `origin` from direction `-dir`.
-    pub fn radiance(&self, origin: Vec3, dir: Vec3, rng: &mut Rng, stats: &mut Stats) -> Vec3 {
+    pub fn radiance(&self, origin: Vec3, dir: Vec3, rng: &mut Sampler, stats: &mut Stats) -> Vec3 {
         self.radiance_traced(&self.scene.geometry.bvh, origin, dir, rng, stats)
     }
 
@@ -117,7 +120,7 @@ impl<'a> Integrator<'a> {
         tracer: &T,
         origin: Vec3,
         dir: Vec3,
-        rng: &mut Rng,
+        rng: &mut Sampler,
         stats: &mut Stats,
     ) -> Vec3 {
         let geometry = &*self.scene.geometry;
@@ -309,7 +312,7 @@ impl<'a> Integrator<'a> {
         &self,
         tracer: &T,
         s: &Shading,
-        rng: &mut Rng,
+        rng: &mut Sampler,
         stats: &mut Stats,
         ctx: &mut LightContext,
     ) -> Option<Direct> {
