@@ -52,6 +52,7 @@ fn floor_only() -> SceneDesc {
         lamps: vec![],
         warnings: Vec::new(),
         camera: camera(Vec3::new(0.0, 3.0, 3.0), Vec3::ZERO),
+        environment: None,
     }
 }
 

@@ -3,4 +3,5 @@
 
 pub mod builtin;
 pub mod desc;
+pub mod environment;
 pub mod gltf;

@@ -100,7 +100,7 @@ pub fn run(args: &CompareArgs) -> Result<()> {
     let mut comparisons = Vec::new();
     let mut written = Vec::new();
     for name in &names {
-        let mut scene = super::open_scene(name)?;
+        let mut scene = super::open_scene(name, &args.image.environment)?;
         if scene.name.is_empty() {
             scene.name = name.clone();
         }

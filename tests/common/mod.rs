@@ -77,6 +77,7 @@ pub fn floor_and_light(albedo: f32, light: Vec<Vec3>, le: f32) -> SceneDesc {
         lamps: vec![],
         warnings: Vec::new(),
         camera: camera(Vec3::new(0.0, 3.0, 3.0), Vec3::ZERO),
+        environment: None,
     }
 }
 

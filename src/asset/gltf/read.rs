@@ -331,6 +331,7 @@ impl<'a> Doc<'a> {
             portals,
             lamps,
             camera,
+            environment: None,
             warnings: Vec::new(),
         })
     }
