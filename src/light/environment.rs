@@ -154,7 +154,8 @@ impl Environment {
                 ..
             } => {
                 let m = self.to_map(w);
-                let sin_theta = (1.0 - m.y * m.y).max(0.0).sqrt();
+                // From the horizontal part: accurate near the poles, where 1 − y² cancels.
+                let sin_theta = (m.x * m.x + m.z * m.z).sqrt();
                 if sin_theta <= 0.0 {
                     return 0.0;
                 }
