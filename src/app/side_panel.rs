@@ -26,6 +26,9 @@ impl PortalViewApp {
                     egui::CollapsingHeader::new("Portals")
                         .default_open(true)
                         .show(ui, |ui| self.portal_panel(ui, commands));
+                    egui::CollapsingHeader::new("Environment")
+                        .default_open(true)
+                        .show(ui, |ui| self.environment_panel(ui, commands));
                     egui::CollapsingHeader::new("Statistics")
                         .default_open(false)
                         .show(ui, |ui| self.statistics(ui));
@@ -114,10 +117,10 @@ impl PortalViewApp {
         let portals = self
             .current
             .as_ref()
-            .map_or(&[][..], |c| &c.rendered.portals);
+            .map_or(Vec::new(), |c| c.rendered.overlay_portal_names());
         let portal_name = |i: Option<usize>| match i {
             None => "all portals".to_owned(),
-            Some(i) => portals.get(i).map_or("?".into(), |p| p.name.clone()),
+            Some(i) => portals.get(i).cloned().unwrap_or_else(|| "?".into()),
         };
         egui::ComboBox::from_label("regions of")
             .selected_text(portal_name(self.overlay_portal))

@@ -346,6 +346,16 @@ impl Scene {
         })
     }
 
+    /// The names of the portals, then the windows: what the overlay's per-portal regions
+    /// are indexed by.
+    pub fn overlay_portal_names(&self) -> Vec<String> {
+        self.portals
+            .iter()
+            .map(|p| p.name.clone())
+            .chain(self.windows.iter().map(|w| format!("{} (window)", w.name)))
+            .collect()
+    }
+
     /// How the scene is named in messages: its file, else its name.
     pub fn file_label(&self) -> String {
         match &self.source {
