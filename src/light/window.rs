@@ -26,8 +26,8 @@ pub enum WindowError {
     BadAlpha { portal: String, alpha: f32 },
 }
 
-/// Cells per side of a window's guided table over `(α, β) ∈ (−π/2, π/2)²` (1.4° each).
-pub const GUIDED_CELLS: usize = 128;
+/// Cells per side of a window's guided table over `(α, β) ∈ (−π/2, π/2)²` (0.7° each, as the built-in sky's pixels).
+pub const GUIDED_CELLS: usize = 256;
 /// Supersamples per cell side when the table is built.
 const GUIDED_SUPERSAMPLES: usize = 3;
 
@@ -59,11 +59,15 @@ struct WindowFrame {
     bounds: [f64; 4],
 }
 
-/// The piecewise-constant density over `(α, β)`, with each column's running integral in `β`.
+/// The piecewise-constant density over `(α, β)`: its summed-area table, whose bilinear
+/// interpolation is the density's exact integral from the corner `(−π/2, −π/2)`, and each
+/// column's running integral in `β`.
 #[derive(Clone, Debug)]
 struct GuidedTable {
     /// `T[c·N + r]`, cell `c` in `α`, `r` in `β`.
     weights: Vec<f64>,
+    /// `S[c·(N+1) + r]`: the integral of `T` over `α < edge(c)`, `β < edge(r)`.
+    summed: Vec<f64>,
     /// Column `c`'s integral from `β = −π/2` to the edge below row `r`: `[c·(N+1) + r]`.
     column_cdf: Vec<f64>,
 }
@@ -349,87 +353,101 @@ impl GuidedTable {
         for w in &mut weights {
             *w = w.max(floor);
         }
-        let mut column_cdf = vec![0.0; n * (n + 1)];
+        let m = n + 1;
+        let mut column_cdf = vec![0.0; n * m];
+        let mut summed = vec![0.0; m * m];
         for c in 0..n {
             for r in 0..n {
-                column_cdf[c * (n + 1) + r + 1] =
-                    column_cdf[c * (n + 1) + r] + weights[c * n + r] * CELL;
+                let mass = weights[c * n + r] * CELL;
+                column_cdf[c * m + r + 1] = column_cdf[c * m + r] + mass;
+                summed[(c + 1) * m + r + 1] =
+                    summed[c * m + r + 1] + column_cdf[c * m + r + 1] * CELL;
             }
         }
         GuidedTable {
             weights,
+            summed,
             column_cdf,
         }
     }
 
-    /// Column `c`'s integral from `−π/2` to `beta` (exact: linear within a cell).
-    fn column_integral_to(&self, c: usize, beta: f64) -> f64 {
-        let r = cell(beta);
-        self.column_cdf[c * (GUIDED_CELLS + 1) + r]
-            + self.weights[c * GUIDED_CELLS + r] * (beta - edge(r)).clamp(0.0, CELL)
+    /// The integral of `T` over `[−π/2, α] × [−π/2, β]`: bilinear in the summed-area table,
+    /// which is exact for a piecewise-constant density.
+    fn integral_to(&self, alpha: f64, beta: f64) -> f64 {
+        let (c, fa) = locate(alpha);
+        let (r, fb) = locate(beta);
+        let m = GUIDED_CELLS + 1;
+        let s = |i: usize, j: usize| self.summed[i * m + j];
+        let (s00, s10, s01, s11) = (s(c, r), s(c + 1, r), s(c, r + 1), s(c + 1, r + 1));
+        s00 + fa * (s10 - s00) + fb * (s01 - s00) + fa * fb * (s11 - s10 - s01 + s00)
     }
 
-    /// Column `c`'s integral over `[β0, β1]`: the marginal density in `α` there.
-    fn column_integral(&self, c: usize, beta: [f64; 2]) -> f64 {
-        (self.column_integral_to(c, beta[1]) - self.column_integral_to(c, beta[0])).max(0.0)
-    }
-
-    /// The columns overlapping `[α0, α1]`, each with its overlap `[lo, hi]`.
-    fn columns(alpha: [f64; 2]) -> impl Iterator<Item = (usize, f64, f64)> {
-        (cell(alpha[0])..=cell(alpha[1])).map(move |c| {
-            let lo = alpha[0].max(edge(c));
-            let hi = alpha[1].min(edge(c + 1));
-            (c, lo, hi.max(lo))
-        })
+    /// The marginal CDF in `α` over the box's `β` range, from `−π/2`.
+    fn marginal_to(&self, alpha: f64, beta: [f64; 2]) -> f64 {
+        self.integral_to(alpha, beta[1]) - self.integral_to(alpha, beta[0])
     }
 
     /// `Z`: the table's integral over the box.
     fn box_integral(&self, alpha: [f64; 2], beta: [f64; 2]) -> f64 {
-        Self::columns(alpha)
-            .map(|(c, lo, hi)| self.column_integral(c, beta) * (hi - lo))
-            .sum()
+        self.marginal_to(alpha[1], beta) - self.marginal_to(alpha[0], beta)
     }
 
-    /// Inverts the marginal CDF in `α` (piecewise linear): the angle and its column.
+    /// Column `c`'s integral from `−π/2` to `beta` (exact: linear within a cell).
+    fn column_integral_to(&self, c: usize, beta: f64) -> f64 {
+        let (r, f) = locate(beta);
+        self.column_cdf[c * (GUIDED_CELLS + 1) + r] + self.weights[c * GUIDED_CELLS + r] * f * CELL
+    }
+
+    /// Inverts the marginal CDF in `α` (piecewise linear): the angle and its column. A binary
+    /// search over the column edges inside the box, then a linear step within the column.
     fn sample_alpha(&self, b: &GuidedBox, u: f64) -> Option<(f64, usize)> {
-        let target = u * b.integral;
-        let mut acc = 0.0;
-        let mut last = None;
-        for (c, lo, hi) in Self::columns(b.alpha) {
-            let density = self.column_integral(c, b.beta);
-            let mass = density * (hi - lo);
-            if mass <= 0.0 {
-                continue;
+        let base = self.marginal_to(b.alpha[0], b.beta);
+        let target = base + u * b.integral;
+        let (c0, c1) = (cell(b.alpha[0]), cell(b.alpha[1]));
+        // The first column whose upper end reaches past the target.
+        let (mut lo, mut hi) = (c0, c1);
+        while lo < hi {
+            let mid = (lo + hi) / 2;
+            if self.marginal_to(edge(mid + 1).min(b.alpha[1]), b.beta) > target {
+                hi = mid;
+            } else {
+                lo = mid + 1;
             }
-            if acc + mass > target {
-                return Some((((target - acc) / density + lo).clamp(lo, hi), c));
-            }
-            acc += mass;
-            last = Some((hi, c));
         }
-        // Rounding left the target past the last column's mass: its upper end.
-        last
+        let c = lo;
+        let start = b.alpha[0].max(edge(c));
+        let end = b.alpha[1].min(edge(c + 1)).max(start);
+        let at_start = self.marginal_to(start, b.beta);
+        let density = (self.marginal_to(end, b.beta) - at_start) / (end - start);
+        if !(density > 0.0 && density.is_finite()) {
+            return None;
+        }
+        Some((((target - at_start) / density + start).clamp(start, end), c))
     }
 
     /// Inverts column `c`'s CDF in `β` within `[β0, β1]`: the angle and its row.
     fn sample_beta(&self, c: usize, beta: [f64; 2], u: f64) -> Option<(f64, usize)> {
-        let target = u * self.column_integral(c, beta);
-        let mut acc = 0.0;
-        let mut last = None;
-        for r in cell(beta[0])..=cell(beta[1]) {
-            let lo = beta[0].max(edge(r));
-            let hi = beta[1].min(edge(r + 1)).max(lo);
-            let density = self.weights[c * GUIDED_CELLS + r];
-            let mass = density * (hi - lo);
-            if mass <= 0.0 {
-                continue;
-            }
-            if acc + mass > target {
-                return Some((((target - acc) / density + lo).clamp(lo, hi), r));
-            }
-            acc += mass;
-            last = Some((hi, r));
-        }
-        last
+        let m = GUIDED_CELLS + 1;
+        let (f0, f1) = (
+            self.column_integral_to(c, beta[0]),
+            self.column_integral_to(c, beta[1]),
+        );
+        let target = f0 + u * (f1 - f0);
+        let (r0, r1) = (cell(beta[0]), cell(beta[1]));
+        // The first row whose upper edge's running integral passes the target.
+        let ends = &self.column_cdf[c * m + r0 + 1..=c * m + r1 + 1];
+        let r = (r0 + ends.partition_point(|&f| f <= target)).min(r1);
+        let weight = self.weights[c * GUIDED_CELLS + r];
+        let start = beta[0].max(edge(r));
+        let end = beta[1].min(edge(r + 1)).max(start);
+        let at_edge = self.column_cdf[c * m + r];
+        Some(((edge(r) + (target - at_edge) / weight).clamp(start, end), r))
     }
+}
+
+/// The cell of angle `a` and the fraction of it below `a`.
+fn locate(a: f64) -> (usize, f64) {
+    let x = (a + FRAC_PI_2) / CELL;
+    let c = (x.max(0.0) as usize).min(GUIDED_CELLS - 1);
+    (c, (x - c as f64).clamp(0.0, 1.0))
 }

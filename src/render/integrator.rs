@@ -290,7 +290,9 @@ impl<'a> Integrator<'a> {
             Some((x, bsdf_pdf)) => {
                 let prob = self.lights.environment_probability();
                 let light_pdf = if prob > 0.0 {
-                    let ctx = self.sky.context(self.scene, x);
+                    // Filled in place: a context is kilobytes, too large to return by value.
+                    let mut ctx = SkyContext::new();
+                    self.sky.fill_context(self.scene, x, &mut ctx);
                     prob * self.sky.pdf(self.scene, &ctx, d)
                 } else {
                     0.0
