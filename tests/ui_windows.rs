@@ -11,10 +11,20 @@ use portalview::light::Strategy;
 use portalview::light::antishadow::Region;
 mod ui_common;
 
-use ui_common::{harness_with, serial, step_until};
+use ui_common::{serial, step_until};
 
+/// The viewer on `scene` in a window tall enough that the side panel's Portals and
+/// Environment sections are on screen without scrolling (clicks reach only what is shown).
 fn harness(scene: &str) -> Harness<'static, PortalViewApp> {
-    harness_with(scene, |_| {})
+    let scene = scene.to_owned();
+    let mut h = Harness::builder()
+        .with_size(egui::vec2(1100.0, 1500.0))
+        .wgpu()
+        .build_eframe(move |cc| PortalViewApp::new(&cc.egui_ctx, None, Some(scene)).unwrap());
+    step_until(&mut h, "the first scene", |a| {
+        a.scene().is_some() && !a.is_busy()
+    });
+    h
 }
 
 fn has_full_frame(app: &PortalViewApp) -> bool {

@@ -154,7 +154,10 @@ impl PortalViewApp {
                     region.name(),
                     technique.map_or("light alone", Technique::name)
                 ));
-                ui.label(shares.map_or("–".into(), |s| format!("{:.1}%", 100.0 * s[k])));
+                // Fixed width ("100.0%" as wide as " 99.9%"): a share that reaches 100%
+                // must not widen the panel, which would resize the image and restart it.
+                let share = shares.map_or("   –  ".into(), |s| format!("{:>5.1}%", 100.0 * s[k]));
+                ui.label(egui::RichText::new(share).monospace());
                 ui.end_row();
             }
         });
