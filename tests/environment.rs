@@ -1,4 +1,4 @@
-//! The environment light (`docs/method.md` §8): its sampler's pdf integrates to 1, sampled
+//! The environment light (`docs/method.md` §9): its sampler's pdf integrates to 1, sampled
 //! pdf equals evaluated pdf, samples pass a chi-square test against the image (and a wrong
 //! image is rejected), a constant environment gives irradiance π·L on an open plane through
 //! the full renderer (and 1.03 × that is rejected); `.hdr` and `.exr` files load, broken ones

@@ -1,4 +1,4 @@
-//! Window portals onto the environment (`docs/method.md` §8): for windows of several shapes
+//! Window portals onto the environment (`docs/method.md` §9): for windows of several shapes
 //! and points in front of them (grazing ones included), each technique (uniform area, uniform
 //! solid angle, proportional to the environment within the window) has a pdf that integrates
 //! to 1 (the guided one to its acceptance rate), reports the pdf evaluated for its samples, and

@@ -1,5 +1,5 @@
 //! The environment: radiance arriving from infinitely far, from an equirectangular image or a
-//! constant, importance-sampled (`docs/method.md` §8).
+//! constant, importance-sampled (`docs/method.md` §9).
 //!
 //! Mapping (Blender's *Environment Texture*, glTF axes, +Y up), for a unit direction `d` in the
 //! map's frame: `u = 0.5 + atan2(d.z, d.x) / 2π`, row fraction from the top `v = acos(d.y) / π`.

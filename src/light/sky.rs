@@ -1,4 +1,4 @@
-//! The estimator for the environment (`docs/method.md` §8): the same single-sample mixture as
+//! The estimator for the environment (`docs/method.md` §9): the same single-sample mixture as
 //! for an area light, with the environment as the light and window portals as its portals,
 //!
 //! `q(ω) = alpha · p_env(ω) + (1 − alpha) · Σ_j w_j(x) · p_{s_j}(ω | x)`,

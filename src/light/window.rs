@@ -1,5 +1,5 @@
 //! Window portals: convex polygons through which the environment lights a room
-//! (`docs/method.md` §8). A window's front, where shading points are, is the side its normal
+//! (`docs/method.md` §9). A window's front, where shading points are, is the side its normal
 //! points to (the winding's, counter-clockwise); directions through it from a point in front
 //! reach the sky unless geometry outside blocks them.
 //!
