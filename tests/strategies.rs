@@ -1,4 +1,4 @@
-//! The portal method's strategies (`docs/method.md` §9), at
+//! The portal method's strategies (`docs/method.md` §8), at
 //! points in every region of every portal, with several portals on one light and several
 //! lights: the mixture pdf integrates to the covered fraction, each technique's sampled density
 //! equals its evaluated density, samples pass a chi-square test against the pdf, every
