@@ -163,4 +163,3 @@ fn environment_panel_turns_the_sky_off_and_on_and_saves() {
     assert!(moved[0][0].abs_diff_eq(original[0][0] + Vec3::new(0.1, 0.0, 0.0), 1e-4));
     let _ = std::fs::remove_dir_all(&dir);
 }
-
