@@ -231,7 +231,7 @@ fn window_sampled_pdf_equals_evaluated_pdf() {
 }
 
 /// Bins of directions from `x` by where they cross the window's plane: a 12 × 12 grid over the
-/// window's bounding rectangle. Each bin's probability under a pdf is integrated with 16 × 16
+/// window's bounding rectangle. Each bin's probability under a pdf is integrated with 40 × 40
 /// midpoints (the pdf is 0 outside the window).
 struct PlaneBins {
     x: Vec3,
@@ -278,7 +278,9 @@ impl PlaneBins {
     }
 
     fn probabilities(&self, pdf: impl Fn(Vec3) -> f32) -> Vec<f64> {
-        let sub = 16;
+        // Fine enough to resolve the guided table's 0.7° cells (the sun's edge in them) across
+        // a bin seen from close by.
+        let sub = 40;
         let cell = self.size / BINS as f32;
         let mut probabilities = vec![0.0; BINS * BINS];
         for (k, p) in probabilities.iter_mut().enumerate() {
