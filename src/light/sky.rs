@@ -6,7 +6,8 @@
 //! always weighted by the whole mixture's pdf. A point in front of a window sees the sky
 //! through all of it (its antiantumbra), so a window needs no antishadow planes: the region is
 //! `Antiantumbra` in front, `Behind` otherwise. Weights follow each window's solid angle from
-//! `x`; alpha is the largest `portal_light_probability` of the windows, or the override.
+//! `x` (under the guided technique, the environment's table integral over the window's box);
+//! alpha is the largest `portal_light_probability` of the windows, or the override.
 
 use arrayvec::ArrayVec;
 use glam::{Vec2, Vec3};
@@ -187,14 +188,24 @@ impl SkySampler {
             let Some(term) = ctx.terms.last_mut() else {
                 break;
             };
-            if several || technique == SkyTechnique::SolidAngle {
+            if technique == SkyTechnique::Guided {
+                term.guided = window.guided_box(x);
+            }
+            if technique == SkyTechnique::SolidAngle
+                || (several && technique != SkyTechnique::Guided)
+            {
                 term.spherical = window.solid_angle(x);
             }
             if several {
-                term.weight = term.spherical.as_ref().map_or(0.0, |q| q.solid_angle());
-            }
-            if technique == SkyTechnique::Guided {
-                term.guided = window.guided_box(x);
+                // Guided terms share by the environment's weight through each window's box
+                // (its table integral), so that the window that sees the sun gets the samples;
+                // the others by solid angle. Either depends on x alone.
+                term.weight = match technique {
+                    SkyTechnique::Guided => {
+                        term.guided.as_ref().map_or(0.0, |b| b.integral() as f32)
+                    }
+                    _ => term.spherical.as_ref().map_or(0.0, |q| q.solid_angle()),
+                };
             }
             let usable = match technique {
                 SkyTechnique::SolidAngle => term.spherical.is_some(),

@@ -87,6 +87,14 @@ const EDGE_SLACK: f64 = 8.0 * f32::EPSILON as f64;
 
 const CELL: f64 = std::f64::consts::PI / GUIDED_CELLS as f64;
 
+impl GuidedBox {
+    /// `Z(x)`: the table's integral over the box (the environment's weight through the
+    /// window's bounding box, seen from x).
+    pub fn integral(&self) -> f64 {
+        self.integral
+    }
+}
+
 impl Window {
     /// Validates `desc`, the `desc_index`-th portal of its scene. Its front is its winding's
     /// side. With an image environment, builds the table the guided technique follows.
