@@ -8,7 +8,7 @@ use indicatif::ProgressBar;
 use portalview::cli::{Cli, run};
 use portalview::compare::{
     EqualTime, ImageSpec, RELMSE_EPSILON, ReferenceBudget, ReferenceOrigin, cache_key,
-    cached_reference, mse, relmse,
+    cached_reference, error_at_spp, mse, relmse, render_reference, time_to_error,
 };
 use portalview::light::Strategy;
 use portalview::render::integrator::RenderSettings;
@@ -328,4 +328,43 @@ fn reference_cache_hits_on_second_request() {
     moved.camera.eye.x += 0.01;
     assert_ne!(cache_key(&moved, image), key);
     let _ = std::fs::remove_dir_all(&cache);
+}
+
+/// Time to an equal error stops at the first pass whose relMSE is at most the target, and a run
+/// stopped by the cap is extrapolated as relMSE ∝ 1/time; the error at a given spp is that of a
+/// render of exactly that many passes.
+#[test]
+fn time_to_error_stops_at_the_target_or_the_cap() {
+    let scene = Scene::open("fig8c").unwrap();
+    let image = ImageSpec {
+        width: 16,
+        height: 12,
+        max_depth: 1,
+    };
+    let never = AtomicBool::new(false);
+    let reference = render_reference(
+        &scene,
+        image,
+        0,
+        ReferenceBudget::Spp(32),
+        &never,
+        &ProgressBar::hidden(),
+    )
+    .unwrap();
+    let settings = RenderSettings::default();
+    let easy = time_to_error(&scene, settings, &reference, 1e9, 60.0);
+    assert!(easy.reached);
+    assert_eq!(easy.spp, 1);
+    assert_eq!(easy.estimated_seconds(1e9), easy.seconds);
+    // A target no render reaches: the cap (zero: one pass) stops it, and the time needed is
+    // extrapolated from the error reached.
+    let hard = time_to_error(&scene, settings, &reference, 1e-30, 0.0);
+    assert!(!hard.reached);
+    assert_eq!(hard.spp, 1);
+    assert!(hard.relmse > 1e-30);
+    let extrapolated = hard.estimated_seconds(1e-30);
+    assert!((extrapolated / (hard.seconds * hard.relmse / 1e-30) - 1.0).abs() < 1e-12);
+    // The error at one spp is the error of the one-pass render above (same seed and sampler).
+    let (mse, relmse) = error_at_spp(&scene, settings, &reference, 1);
+    assert_eq!((mse, relmse), (hard.mse, hard.relmse));
 }

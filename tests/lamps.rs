@@ -22,7 +22,7 @@ use portalview::light::estimator::LightSampler;
 use portalview::light::punctual::LUMENS_PER_WATT;
 use portalview::render::integrator::{Integrator, RenderSettings};
 use portalview::render::stats::Stats;
-use portalview::sampling::Rng;
+use portalview::sampling::{Rng, Sampler};
 use portalview::scene::Scene;
 use serde_json::{Value, json};
 
@@ -302,7 +302,7 @@ fn point_lamp_inside_a_shade_lights_through_the_opening_only() {
     let mut stats = Stats::default();
     let total: f32 = (0..4000)
         .map(|k| {
-            let mut rng = Rng::keyed(3, &[k]);
+            let mut rng = Sampler::from(Rng::keyed(3, &[k]));
             let l = integrator.radiance(eye, (x - eye).normalize(), &mut rng, &mut stats);
             assert!(l.is_finite());
             l.x

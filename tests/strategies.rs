@@ -20,7 +20,7 @@ use portalview::light::{Strategy, Technique};
 use portalview::render::film::Film;
 use portalview::render::integrator::{Integrator, RenderSettings};
 use portalview::render::render;
-use portalview::sampling::{Frame, Rng};
+use portalview::sampling::{Frame, Rng, SamplerKind};
 use portalview::scene::Scene;
 
 /// A cone of directions from `x` containing every direction to `points` (plus a margin), sampled
@@ -736,6 +736,9 @@ fn render_image(
             alpha,
             max_depth: 1,
             seed,
+            // The block z-scores take each pixel's standard error from its sample variance,
+            // which assumes independent samples.
+            sampler: SamplerKind::Independent,
         },
     );
     let (film, stats) = render(&integrator, 48, 36, spp);

@@ -9,6 +9,7 @@ use portalview::app::PortalViewApp;
 use portalview::app::overlay::OverlayKind;
 use portalview::light::Strategy;
 use portalview::light::antishadow::Region;
+use portalview::sampling::SamplerKind;
 mod ui_common;
 
 use ui_common::{harness_with, serial, step_until};
@@ -50,6 +51,27 @@ fn switching_strategy_changes_what_the_worker_renders() {
     h.key_press(egui::Key::Num3);
     h.step();
     assert_eq!(h.state().settings.strategy, Strategy::Projection);
+}
+
+/// The sampler buttons restart the render with the chosen random numbers.
+#[test]
+fn switching_sampler_restarts_the_render_with_it() {
+    let _serial = serial();
+    let mut h = harness("fig8b");
+    step_until(&mut h, "first frame", has_full_frame);
+    for (label, kind) in [
+        ("independent", SamplerKind::Independent),
+        ("sobol", SamplerKind::Sobol),
+    ] {
+        let generation = h.state().frame().unwrap().generation;
+        h.get_by_label(label).click();
+        h.step();
+        assert_eq!(h.state().settings.sampler, kind);
+        assert_eq!(h.state().render_settings().sampler, kind);
+        step_until(&mut h, "restarted frame", |a| {
+            has_full_frame(a) && a.frame().unwrap().generation > generation
+        });
+    }
 }
 
 #[test]

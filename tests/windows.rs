@@ -475,6 +475,8 @@ fn render_image(
             alpha,
             max_depth: 1,
             seed,
+            // Block z-scores rest on per-pixel sample variance: independent numbers.
+            sampler: portalview::sampling::SamplerKind::Independent,
         },
     );
     let (film, stats) = render(&integrator, 48, 36, spp);

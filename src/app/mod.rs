@@ -30,6 +30,7 @@ use crate::camera::Camera;
 use crate::light::Strategy;
 use crate::render::integrator::RenderSettings;
 use crate::render::worker::{Frame, RenderHandle, RenderRequest};
+use crate::sampling::SamplerKind;
 use crate::scene::Scene;
 use compare_view::CompareView;
 use edit::PortalEditor;
@@ -236,12 +237,14 @@ impl PortalViewApp {
         &mut self.compare
     }
 
-    fn render_settings(&self) -> RenderSettings {
+    /// What the render worker is asked to render with (the viewer's settings).
+    pub fn render_settings(&self) -> RenderSettings {
         RenderSettings {
             strategy: self.settings.strategy,
             alpha: self.settings.alpha,
             max_depth: self.settings.max_depth,
             seed: 0,
+            sampler: self.settings.sampler,
         }
     }
 
@@ -534,8 +537,13 @@ impl PortalViewApp {
         egui::Panel::bottom("status").show(ui, |ui| self.status_bar(ui));
         if self.mode == ViewMode::Compare {
             let settings = &mut self.settings;
-            self.compare
-                .sync(&ctx, &settings.compare, settings.max_depth, settings.alpha);
+            self.compare.sync(
+                &ctx,
+                &settings.compare,
+                settings.max_depth,
+                settings.alpha,
+                settings.sampler,
+            );
             self.compare.show(
                 ui,
                 &mut settings.compare,
@@ -576,6 +584,7 @@ pub struct ViewOptions {
     /// Draw the edges of the antishadow volumes.
     pub volumes: bool,
     pub max_depth: Option<u32>,
+    pub sampler: Option<SamplerKind>,
 }
 
 /// Opens the viewer window (blocks until it closes).
@@ -596,6 +605,7 @@ pub fn run_viewer(args: ViewOptions) -> Result<()> {
             s.strategy = args.strategy.unwrap_or(s.strategy);
             s.overlay = args.overlay.unwrap_or(s.overlay);
             s.max_depth = args.max_depth.unwrap_or(s.max_depth).max(1);
+            s.sampler = args.sampler.unwrap_or(s.sampler);
             s.show_volumes |= args.volumes;
             Ok(Box::new(app))
         }),

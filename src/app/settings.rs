@@ -3,6 +3,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::light::Strategy;
+use crate::sampling::SamplerKind;
 
 use super::compare_view::CompareViewSettings;
 use super::overlay::OverlayKind;
@@ -15,6 +16,8 @@ pub struct ViewerSettings {
     /// Overrides every portal's alpha when set.
     pub alpha: Option<f32>,
     pub max_depth: u32,
+    /// Where the render's random numbers come from.
+    pub sampler: SamplerKind,
     /// Exposure in stops.
     pub exposure: f32,
     /// Show log-luminance in false colour instead of the tone-mapped image.
@@ -45,6 +48,7 @@ impl Default for ViewerSettings {
             // One bounce more than the thesis's direct-only experiments, so that surfaces lit
             // only indirectly (the outside of a lampshade) are visible in the viewer.
             max_depth: 2,
+            sampler: SamplerKind::default(),
             exposure: 0.0,
             false_colour: false,
             resolution_scale: 0.5,

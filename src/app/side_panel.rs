@@ -7,6 +7,7 @@ use super::overlay::{self, OverlayKind};
 use super::{Command, PortalViewApp, ViewMode, ViewerSettings};
 use crate::light::antishadow::Region;
 use crate::light::{Strategy, Technique};
+use crate::sampling::SamplerKind;
 
 impl PortalViewApp {
     /// The render mode's panels: controls on the left, the image in the middle.
@@ -42,6 +43,7 @@ impl PortalViewApp {
             strategy,
             alpha,
             max_depth,
+            sampler,
             exposure,
             false_colour,
             resolution_scale,
@@ -75,6 +77,15 @@ impl PortalViewApp {
         {
             commands.push(Command::Restart);
         }
+        ui.horizontal(|ui| {
+            ui.label("sampler")
+                .on_hover_text("sobol: Owen-scrambled Sobol' points, stratified per pixel (less noise at equal samples); independent: uniform random numbers");
+            for s in SamplerKind::ALL {
+                if ui.selectable_value(sampler, s, s.name()).changed() {
+                    commands.push(Command::Restart);
+                }
+            }
+        });
         if ui
             .add(egui::Slider::new(resolution_scale, 0.125..=1.0).text("resolution"))
             .changed()

@@ -9,9 +9,14 @@ use clap::Args;
 
 use super::render::render_for;
 use crate::asset::builtin;
+use crate::compare::{
+    ImageSpec, ReferenceBudget, TimeToError, cached_reference, default_cache_dir, error_at_spp,
+    render_reference, time_to_error,
+};
 use crate::light::Strategy;
 use crate::render::integrator::{Integrator, RenderSettings};
 use crate::render::record::{RecordedRay, record_pass};
+use crate::sampling::SamplerKind;
 use crate::scene::Scene;
 use crate::scene::bvh::Bvh;
 
@@ -62,10 +67,139 @@ pub struct BenchArgs {
     /// CPU, and the time from a portal edit to the first new preview.
     #[arg(long)]
     pub ui: bool,
+    /// Which measurements: throughput (traversal, samples/s), convergence (MSE at equal spp
+    /// per sampler, time to the target relMSE), or both.
+    #[arg(long, value_enum, default_value_t = BenchPart::All)]
+    pub only: BenchPart,
+    /// The relMSE that "time to an equal error" waits for.
+    #[arg(long, default_value_t = 1e-4)]
+    pub target_relmse: f64,
+    /// Pass time after which a run that has not reached the target is stopped and its time
+    /// extrapolated (as relMSE ∝ 1/time).
+    #[arg(long, default_value_t = 20.0)]
+    pub cap_seconds: f64,
+    /// Samples per pixel of the MSE-at-equal-spp comparison of the samplers.
+    #[arg(long, default_value_t = 64)]
+    pub mse_spp: u32,
+    /// Samples per pixel of the references (antishadow, independent samples, cached in the
+    /// cache folder of `portalview compare`).
+    #[arg(long, default_value_t = 4096)]
+    pub reference_spp: u32,
+    /// Where references are cached [default: $XDG_CACHE_HOME/portalview or
+    /// ~/.cache/portalview].
+    #[arg(long)]
+    pub cache_dir: Option<std::path::PathBuf>,
 }
 
-/// `portalview bench`: raw traversal against the renderer, and each strategy's cost.
+/// The parts of `portalview bench`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum BenchPart {
+    All,
+    Throughput,
+    Convergence,
+}
+
+/// `portalview bench`: raw traversal against the renderer, each strategy's cost, and each
+/// strategy's and sampler's error at equal spp and time to an equal error.
 pub fn run(args: &BenchArgs) -> Result<()> {
+    if args.only != BenchPart::Convergence {
+        throughput(args)?;
+    }
+    if args.only != BenchPart::Throughput {
+        convergence(args)?;
+    }
+    Ok(())
+}
+
+/// Per built-in scene, strategy and sampler: MSE and relMSE at `--mse-spp` against the cached
+/// reference, and the time to reach `--target-relmse`.
+fn convergence(args: &BenchArgs) -> Result<()> {
+    anyhow::ensure!(
+        args.target_relmse > 0.0 && args.cap_seconds > 0.0 && args.mse_spp > 0,
+        "--target-relmse, --cap-seconds and --mse-spp must be positive"
+    );
+    let cache_dir = args.cache_dir.clone().or_else(default_cache_dir);
+    let image = ImageSpec {
+        width: args.size,
+        height: args.size,
+        max_depth: 1,
+    };
+    let budget = ReferenceBudget::Spp(args.reference_spp);
+    println!();
+    println!(
+        "Error against the reference ({} spp, antishadow, independent samples), {}x{} px, direct light: MSE at {} spp per sampler, and the pass time to relMSE <= {:.1e} (stopped at {:.0} s, then extrapolated as relMSE ~ 1/time, marked ~)",
+        args.reference_spp,
+        args.size,
+        args.size,
+        args.mse_spp,
+        args.target_relmse,
+        args.cap_seconds
+    );
+    println!();
+    println!(
+        "| scene | strategy | MSE independent | MSE sobol | MSE ratio | time to target, independent | time to target, sobol | speed-up |"
+    );
+    println!("|---|---|---:|---:|---:|---:|---:|---:|");
+    for name in builtin::NAMES {
+        let scene = Scene::open(name)?;
+        let progress = crate::compare::progress_bar(0, "reference {bar:40} {pos}/{len} spp");
+        let reference = match &cache_dir {
+            Some(dir) => cached_reference(dir, &scene, image, 0, budget, &progress)?,
+            None => {
+                let never = std::sync::atomic::AtomicBool::new(false);
+                render_reference(&scene, image, 0, budget, &never, &progress)
+                    .map_err(|e| anyhow::anyhow!("{name}: {e}"))?
+            }
+        };
+        progress.finish_and_clear();
+        if let Some(info) = &reference.info
+            && info.convergence.relmse_floor > 0.25 * args.target_relmse
+        {
+            eprintln!(
+                "warning: {name}: the reference's relMSE floor {:.1e} is not far below the target {:.1e} (raise --reference-spp)",
+                info.convergence.relmse_floor, args.target_relmse
+            );
+        }
+        for strategy in Strategy::ALL {
+            let settings = |sampler| RenderSettings {
+                strategy,
+                sampler,
+                ..RenderSettings::default()
+            };
+            let [independent, sobol] = SamplerKind::ALL.map(|sampler| {
+                let at_spp = error_at_spp(&scene, settings(sampler), &reference, args.mse_spp);
+                let timed = time_to_error(
+                    &scene,
+                    settings(sampler),
+                    &reference,
+                    args.target_relmse,
+                    args.cap_seconds,
+                );
+                (at_spp, timed)
+            });
+            let time = |t: &TimeToError| {
+                let s = t.estimated_seconds(args.target_relmse);
+                let mark = if t.reached { "" } else { "~" };
+                format!("{mark}{s:.2} s ({} spp)", t.spp)
+            };
+            println!(
+                "| {name} | {} | {:.3e} | {:.3e} | {:.2}x | {} | {} | {:.2}x |",
+                strategy.name(),
+                independent.0.0,
+                sobol.0.0,
+                independent.0.0 / sobol.0.0,
+                time(&independent.1),
+                time(&sobol.1),
+                independent.1.estimated_seconds(args.target_relmse)
+                    / sobol.1.estimated_seconds(args.target_relmse),
+            );
+        }
+    }
+    Ok(())
+}
+
+/// Raw traversal against the renderer, and each strategy's cost (samples/s).
+fn throughput(args: &BenchArgs) -> Result<()> {
     let budget = Duration::from_secs_f64(args.seconds);
     println!(
         "portalview bench: {} threads, {}x{} px, {:.1} s per measurement",

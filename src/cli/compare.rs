@@ -166,6 +166,7 @@ pub fn run(args: &CompareArgs) -> Result<()> {
             seconds: args.seconds,
             image,
             seed: args.image.seed,
+            sampler: args.image.sampler,
         };
         let progress = progress_bar(0, "{bar:40} {msg}  {elapsed_precise}");
         let comparison = compare(&scene, &settings, &reference, &progress);

@@ -16,6 +16,7 @@ pub use compare::CompareArgs;
 pub use render::RenderArgs;
 pub use view::ViewArgs;
 
+use crate::sampling::SamplerKind;
 use crate::scene::Scene;
 
 #[derive(Parser, Debug)]
@@ -108,6 +109,10 @@ pub struct ImageArgs {
     /// Path vertices after the camera (1 = direct light only, as in the thesis).
     #[arg(long, default_value_t = 1)]
     pub max_depth: u32,
+    /// Random numbers: Owen-scrambled Sobol' points in Z-order (stratified per pixel), or
+    /// independent ones.
+    #[arg(long, value_enum, default_value_t = SamplerKind::default())]
+    pub sampler: SamplerKind,
     #[command(flatten)]
     pub environment: EnvironmentArgs,
 }

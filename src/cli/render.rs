@@ -61,6 +61,7 @@ pub fn run(args: &RenderArgs) -> Result<()> {
         alpha: args.alpha,
         max_depth: args.image.max_depth,
         seed: args.image.seed,
+        sampler: args.image.sampler,
     };
     let integrator = Integrator::new(&scene, settings);
     let (film, stats, elapsed) = match args.seconds {

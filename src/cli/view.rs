@@ -5,6 +5,7 @@ use clap::Args;
 use crate::app::ViewOptions;
 use crate::app::overlay::OverlayKind;
 use crate::light::Strategy;
+use crate::sampling::SamplerKind;
 
 #[derive(Args, Debug, Clone, Default)]
 pub struct ViewArgs {
@@ -22,6 +23,10 @@ pub struct ViewArgs {
     /// Path vertices after the camera (else the value used last).
     #[arg(long)]
     pub max_depth: Option<u32>,
+    /// Random numbers: Owen-scrambled Sobol' points or independent ones (else the one used
+    /// last).
+    #[arg(long, value_enum)]
+    pub sampler: Option<SamplerKind>,
 }
 
 impl From<ViewArgs> for ViewOptions {
@@ -32,6 +37,7 @@ impl From<ViewArgs> for ViewOptions {
             overlay: a.overlay,
             volumes: a.volumes,
             max_depth: a.max_depth,
+            sampler: a.sampler,
         }
     }
 }

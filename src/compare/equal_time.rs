@@ -12,6 +12,7 @@ use crate::render::film::Film;
 use crate::render::integrator::{Integrator, RenderSettings};
 use crate::render::stats::Stats;
 use crate::render::{Cancelled, render_pass};
+use crate::sampling::SamplerKind;
 use crate::scene::Scene;
 
 /// One strategy's render in an [`EqualTime`] comparison.
@@ -119,6 +120,8 @@ pub struct CompareSettings {
     pub seconds: f64,
     pub image: ImageSpec,
     pub seed: u64,
+    /// The compared renders' random numbers (the reference's are always independent).
+    pub sampler: SamplerKind,
 }
 
 /// One recorded point of a strategy's convergence.
@@ -178,6 +181,7 @@ pub fn compare(
         alpha: None,
         max_depth: image.max_depth,
         seed: settings.seed,
+        sampler: settings.sampler,
     };
     let mut schedule = EqualTime::new(
         scene.clone(),

@@ -11,6 +11,7 @@ mod equal_time;
 mod metrics;
 mod reference;
 pub mod report;
+mod time_to_error;
 pub mod worker;
 
 pub use equal_time::*;
@@ -20,6 +21,7 @@ pub use report::{
     convergence_csv, convergence_svg, figure8_csv, figure8_markdown, summary_markdown,
 };
 pub use report::{write_figure8_outputs, write_scene_outputs};
+pub use time_to_error::*;
 
 use indicatif::{ProgressBar, ProgressStyle};
 

@@ -14,6 +14,7 @@ use crate::light::Strategy;
 use crate::render::film::Film;
 use crate::render::integrator::{Integrator, RenderSettings};
 use crate::render::{Cancelled, render_pass, tonemap};
+use crate::sampling::SamplerKind;
 use crate::scene::Scene;
 
 /// The image settings a reference depends on besides the scene.
@@ -257,6 +258,9 @@ pub fn render_reference(
         alpha: None,
         max_depth: image.max_depth,
         seed,
+        // Its noise floor comes from the per-pixel sample variance, which is an unbiased
+        // estimate only for independent samples.
+        sampler: SamplerKind::Independent,
     };
     let integrator = Integrator::new(scene, settings);
     let mut film = Film::new(image.width, image.height);

@@ -19,6 +19,7 @@ use crate::light::Strategy;
 use crate::render::Cancelled;
 use crate::render::integrator::RenderSettings;
 use crate::render::shell::{Outbox, Work, WorkerHandle};
+use crate::sampling::SamplerKind;
 use crate::scene::Scene;
 
 /// Where the reference comes from.
@@ -47,6 +48,8 @@ pub struct CompareRequest {
     pub alpha: Option<f32>,
     /// Seed of the compared renders; the reference uses `compare::reference_seed(seed)`.
     pub seed: u64,
+    /// The compared renders' random numbers (the reference's are always independent).
+    pub sampler: SamplerKind,
     pub reference: ReferenceSource,
     /// A reference the UI already holds: used instead of the source when it fits (same
     /// scene, camera, size and depth, and at least the budget; or the same file).
@@ -331,6 +334,7 @@ impl CompareWork {
                         alpha: request.alpha,
                         max_depth: request.image.max_depth,
                         seed: request.seed,
+                        sampler: request.sampler,
                     };
                     let schedule = EqualTime::new(
                         request.scene.clone(),

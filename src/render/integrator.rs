@@ -10,7 +10,7 @@ use crate::light::estimator::{LightContext, LightSample, LightSampler, PickedLig
 use crate::light::sky::{SkyContext, SkySampler};
 use crate::light::{LightSet, Strategy, Technique};
 use crate::material::Material;
-use crate::sampling::{Frame, Rng, power_heuristic};
+use crate::sampling::{Frame, Sampler, SamplerKind, power_heuristic};
 use crate::scene::bvh::Tracer;
 use crate::scene::{NO_LIGHT, Scene};
 
@@ -23,6 +23,8 @@ pub struct RenderSettings {
     /// Path vertices after the camera: 1 = direct light only (the thesis's experiments).
     pub max_depth: u32,
     pub seed: u64,
+    /// Where the random numbers come from.
+    pub sampler: SamplerKind,
 }
 
 impl Default for RenderSettings {
@@ -32,6 +34,7 @@ impl Default for RenderSettings {
             alpha: None,
             max_depth: 1,
             seed: 0,
+            sampler: SamplerKind::default(),
         }
     }
 }
@@ -116,7 +119,7 @@ impl<'a> Integrator<'a> {
     }
 
     /// Radiance arriving at `origin` from direction `-dir`.
-    pub fn radiance(&self, origin: Vec3, dir: Vec3, rng: &mut Rng, stats: &mut Stats) -> Vec3 {
+    pub fn radiance(&self, origin: Vec3, dir: Vec3, rng: &mut Sampler, stats: &mut Stats) -> Vec3 {
         self.radiance_traced(&self.scene.geometry.bvh, origin, dir, rng, stats)
     }
 
@@ -127,7 +130,7 @@ impl<'a> Integrator<'a> {
         tracer: &T,
         origin: Vec3,
         dir: Vec3,
-        rng: &mut Rng,
+        rng: &mut Sampler,
         stats: &mut Stats,
     ) -> Vec3 {
         let geometry = &*self.scene.geometry;
@@ -343,7 +346,7 @@ impl<'a> Integrator<'a> {
         &self,
         tracer: &T,
         s: &Shading,
-        rng: &mut Rng,
+        rng: &mut Sampler,
         stats: &mut Stats,
         ctx: &mut LightContext,
     ) -> Option<Direct> {

@@ -14,7 +14,6 @@ use rayon::prelude::*;
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use crate::camera::RayGenerator;
-use crate::sampling::Rng;
 use crate::scene::bvh::Tracer;
 use film::Film;
 use integrator::Integrator;
@@ -59,7 +58,7 @@ impl Tiles {
 }
 
 /// One sample for each pixel of tile `tile`, row by row, every ray traced through `tracer`.
-/// Each pixel's random numbers depend only on (seed, pass, pixel).
+/// Each pixel's random numbers depend only on (sampler, seed, pass, pixel).
 pub fn render_tile<T: Tracer>(
     integrator: &Integrator,
     tracer: &T,
@@ -69,14 +68,15 @@ pub fn render_tile<T: Tracer>(
     pass: u32,
     stats: &mut Stats,
 ) -> Vec<Vec3> {
-    let seed = integrator.settings().seed;
+    let settings = integrator.settings();
     let (x0, y0, w, h) = tiles.rect(tile);
     let size = Vec2::new(tiles.width as f32, tiles.height as f32);
     let mut pixels = Vec::with_capacity((w * h) as usize);
     for y in y0..y0 + h {
         for x in x0..x0 + w {
-            let index = (y * tiles.width + x) as u64;
-            let mut rng = Rng::keyed(seed, &[pass as u64, index]);
+            let mut rng = settings
+                .sampler
+                .start(settings.seed, x, y, tiles.width, pass);
             let jitter = rng.uniform2();
             let (o, d) = rays.ray((Vec2::new(x as f32, y as f32) + jitter) / size);
             let l = integrator.radiance_traced(tracer, o, d, &mut rng, stats);

@@ -2,6 +2,7 @@
 //! spherical polygons.
 
 pub mod polygon;
+pub mod sobol;
 pub mod spherical;
 
 use glam::{Vec2, Vec3};
@@ -54,6 +55,85 @@ impl Rng {
 
     pub fn uniform2(&mut self) -> Vec2 {
         Vec2::new(self.uniform(), self.uniform())
+    }
+}
+
+/// Which random numbers a render draws: a closed set, chosen per render.
+#[derive(
+    Clone,
+    Copy,
+    Debug,
+    Default,
+    PartialEq,
+    Eq,
+    Hash,
+    serde::Serialize,
+    serde::Deserialize,
+    clap::ValueEnum,
+)]
+pub enum SamplerKind {
+    /// Independent uniform numbers (PCG32): what the statistical tests assume.
+    Independent,
+    /// Owen-scrambled Sobol' points in Z-order ([`sobol::ZSobol`]): stratified per pixel.
+    #[default]
+    Sobol,
+}
+
+impl SamplerKind {
+    pub const ALL: [SamplerKind; 2] = [SamplerKind::Independent, SamplerKind::Sobol];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            SamplerKind::Independent => "independent",
+            SamplerKind::Sobol => "sobol",
+        }
+    }
+
+    /// The sampler of pass `pass` of pixel `(x, y)` in an image `width` pixels wide: it
+    /// depends on nothing else, so an image does not depend on how threads split the work.
+    pub fn start(self, seed: u64, x: u32, y: u32, width: u32, pass: u32) -> Sampler {
+        match self {
+            SamplerKind::Independent => {
+                let index = y as u64 * width as u64 + x as u64;
+                Sampler::Independent(Rng::keyed(seed, &[pass as u64, index]))
+            }
+            SamplerKind::Sobol => Sampler::Sobol(sobol::ZSobol::new(seed, x, y, pass)),
+        }
+    }
+}
+
+/// The random numbers of one path: the integrator draws them in a fixed order (camera, then
+/// per vertex light pick, technique pick, light direction, lobe, BSDF direction), so that with
+/// Sobol' points each draw is a dimension of its own.
+#[derive(Clone, Debug)]
+pub enum Sampler {
+    Independent(Rng),
+    Sobol(sobol::ZSobol),
+}
+
+impl Sampler {
+    /// Uniform in [0, 1).
+    #[inline]
+    pub fn uniform(&mut self) -> f32 {
+        match self {
+            Sampler::Independent(rng) => rng.uniform(),
+            Sampler::Sobol(s) => s.uniform(),
+        }
+    }
+
+    /// Uniform on [0, 1)², stratified jointly by the Sobol' sampler.
+    #[inline]
+    pub fn uniform2(&mut self) -> Vec2 {
+        match self {
+            Sampler::Independent(rng) => rng.uniform2(),
+            Sampler::Sobol(s) => s.uniform2(),
+        }
+    }
+}
+
+impl From<Rng> for Sampler {
+    fn from(rng: Rng) -> Self {
+        Sampler::Independent(rng)
     }
 }
 

@@ -8,7 +8,7 @@ use portalview::light::Strategy;
 use portalview::material::Material;
 use portalview::render::integrator::{Integrator, RenderSettings};
 use portalview::render::stats::Stats;
-use portalview::sampling::Rng;
+use portalview::sampling::{Rng, Sampler};
 use portalview::scene::Scene;
 
 pub use portalview::asset::builtin::flat_mesh as flat;
@@ -278,7 +278,7 @@ pub fn floor_radiance(
     let mut stats = Stats::default();
     let values: Vec<f64> = (0..n)
         .map(|i| {
-            let mut rng = Rng::keyed(seed, &[i as u64]);
+            let mut rng = Sampler::from(Rng::keyed(seed, &[i as u64]));
             let l = integrator.radiance(eye, (x - eye).normalize(), &mut rng, &mut stats);
             assert!(l.is_finite(), "non-finite radiance at {x}");
             l.x as f64

@@ -25,6 +25,7 @@ use crate::compare::worker::{
 };
 use crate::compare::{ImageSpec, Reference, ReferenceBudget, default_cache_dir, scene_hash};
 use crate::light::Strategy;
+use crate::sampling::SamplerKind;
 use crate::scene::Scene;
 
 /// How the images are laid out.
@@ -100,6 +101,7 @@ struct RequestKey {
     width: u32,
     max_depth: u32,
     alpha: Option<u32>,
+    sampler: SamplerKind,
     reference: ReferenceSource,
 }
 
@@ -239,6 +241,7 @@ impl CompareView {
         settings: &CompareViewSettings,
         max_depth: u32,
         alpha: Option<f32>,
+        sampler: SamplerKind,
     ) {
         self.poll();
         if let Some(frame) = &self.frame
@@ -271,6 +274,7 @@ impl CompareView {
             width: image.width,
             max_depth,
             alpha: alpha.map(f32::to_bits),
+            sampler,
             reference,
         };
         if self.worker.is_some() && self.running.as_ref() == Some(&key) {
@@ -296,6 +300,7 @@ impl CompareView {
             image,
             alpha,
             seed: COMPARE_SEED,
+            sampler,
             reference: key.reference.clone(),
             known_reference: self.last_reference.clone(),
             paused: self.paused,

@@ -1,0 +1,223 @@
+//! Owen-scrambled Sobol' points with a Z-order (Morton) pixel index, after pbrt-v4's
+//! `ZSobolSampler` (Ahmed and Wonka 2020) with Burley's (2020) hash-based scrambles.
+//!
+//! Sample `pass` of pixel `(x, y)` is point number `morton(x, y) · 2^16 + pass` of one global
+//! sequence. Each draw (each call of [`ZSobol::uniform`] or [`ZSobol::uniform2`], counted by a
+//! dimension counter) takes that index through a nested scramble of its bits keyed by the
+//! dimension (so draws are decorrelated from each other and every pixel visits its points in
+//! an order of its own), then evaluates the first one or two Sobol' dimensions there and Owen-
+//! scrambles them (keyed by the dimension again). Because a nested scramble maps every aligned
+//! block of `2^k` indices onto an aligned block, the first `2^k` passes of a pixel are, in
+//! every 1D draw, one point in each `1/2^k` interval, and in every 2D draw a (0, k, 2)-net: any
+//! prefix of passes is well distributed, and the image depends only on the seed, the pixel and
+//! the pass, never on how threads split the work.
+//!
+//! pbrt fixes the sample count in advance and places it in the low bits so that neighbouring
+//! pixels' samples also tile one larger net (blue-noise error) at exactly that count. A
+//! progressive viewer does not know its sample count, so the pass gets a fixed 16 bits
+//! ([`PASSES_PER_EPOCH`]): a pixel's own samples stay stratified at every pass count, and the
+//! blue-noise tiling between pixels is given up. Passes beyond 2^16 start a new epoch with
+//! independent scrambles, which keeps the estimate unbiased.
+
+/// Passes per epoch: the pass occupies the low `LOG2_PASSES` bits of the index.
+pub const LOG2_PASSES: u32 = 16;
+pub const PASSES_PER_EPOCH: u32 = 1 << LOG2_PASSES;
+
+/// The sampler of one pixel sample (one path): a position in the global sequence and a
+/// counter of draws.
+#[derive(Clone, Debug)]
+pub struct ZSobol {
+    /// `morton(x, y) << LOG2_PASSES | pass`, unscrambled, bit-reversed (as the scramble
+    /// takes it; reversed once here rather than at every draw).
+    index_rev: u64,
+    /// The seed and epoch, hashed.
+    key: u64,
+    /// Draws so far: each one is its own (padded) dimension.
+    dimension: u64,
+}
+
+impl ZSobol {
+    /// The sampler for pass `pass` of pixel `(x, y)` under `seed`.
+    pub fn new(seed: u64, x: u32, y: u32, pass: u32) -> Self {
+        let epoch = (pass >> LOG2_PASSES) as u64;
+        let index = (morton2(x, y) << LOG2_PASSES) | (pass & (PASSES_PER_EPOCH - 1)) as u64;
+        ZSobol {
+            index_rev: index.reverse_bits(),
+            key: mix_bits(seed ^ mix_bits(epoch.wrapping_add(0x5851_F42D_4C95_7F2D))),
+            dimension: 0,
+        }
+    }
+
+    /// The scrambled index and the output scrambles' seeds of the next draw.
+    #[inline]
+    fn next_draw(&mut self) -> (u64, u64) {
+        let h = mix_bits(self.key ^ self.dimension.wrapping_mul(0x9E37_79B9_7F4A_7C15));
+        self.dimension += 1;
+        let index = nested_scramble_rev(self.index_rev, h).reverse_bits();
+        (index, mix_bits(h))
+    }
+
+    /// Uniform in [0, 1): the first Sobol' dimension (van der Corput) of this draw's index.
+    #[inline]
+    pub fn uniform(&mut self) -> f32 {
+        let (index, seeds) = self.next_draw();
+        unit(owen_scramble_rev(sobol0_rev(index), seeds as u32))
+    }
+
+    /// Uniform on [0, 1)²: the first two Sobol' dimensions of this draw's index, which form a
+    /// (0, 2)-sequence, each Owen-scrambled with its own seed.
+    #[inline]
+    pub fn uniform2(&mut self) -> glam::Vec2 {
+        let (index, seeds) = self.next_draw();
+        glam::Vec2::new(
+            unit(owen_scramble_rev(sobol0_rev(index), seeds as u32)),
+            unit(owen_scramble_rev(sobol1_rev(index), (seeds >> 32) as u32)),
+        )
+    }
+}
+
+/// 24 bits of a digit-reversed value as a float in [0, 1), like `Rng::uniform`.
+#[inline]
+fn unit(v_rev: u32) -> f32 {
+    (v_rev.reverse_bits() >> 8) as f32 * (1.0 / 16_777_216.0)
+}
+
+/// The Morton (Z-order) code of a pixel: the bits of `x` and `y` interleaved, `x` lowest.
+pub fn morton2(x: u32, y: u32) -> u64 {
+    fn spread(v: u32) -> u64 {
+        let mut v = v as u64;
+        v = (v | (v << 16)) & 0x0000_FFFF_0000_FFFF;
+        v = (v | (v << 8)) & 0x00FF_00FF_00FF_00FF;
+        v = (v | (v << 4)) & 0x0F0F_0F0F_0F0F_0F0F;
+        v = (v | (v << 2)) & 0x3333_3333_3333_3333;
+        (v | (v << 1)) & 0x5555_5555_5555_5555
+    }
+    spread(x) | (spread(y) << 1)
+}
+
+/// The first Sobol' dimension (van der Corput) in digit-reversed form: output digit `i`
+/// (worth `2^-(i+1)`) at bit `i`. Its generator matrix is the identity.
+#[inline]
+pub fn sobol0_rev(index: u64) -> u32 {
+    index as u32
+}
+
+/// The second Sobol' dimension (primitive polynomial x + 1) in digit-reversed form. Its
+/// generator matrix is Pascal's triangle mod 2: index bit `j` flips output digit `i` when
+/// `binom(j, i)` is odd, that is (Lucas) when the bits of `i` are a subset of those of `j`. So
+/// digit `i` is the parity of the index bits at supersets of `i`: a superset sum over the six
+/// bits of a bit position, six shift-and-mask steps for all 64 index bits at once.
+#[inline]
+pub fn sobol1_rev(index: u64) -> u32 {
+    const MASKS: [u64; 6] = [
+        0x5555_5555_5555_5555,
+        0x3333_3333_3333_3333,
+        0x0F0F_0F0F_0F0F_0F0F,
+        0x00FF_00FF_00FF_00FF,
+        0x0000_FFFF_0000_FFFF,
+        0x0000_0000_FFFF_FFFF,
+    ];
+    let mut v = index;
+    for (b, mask) in MASKS.iter().enumerate() {
+        v ^= (v >> (1 << b)) & mask;
+    }
+    v as u32
+}
+
+/// Owen scrambling of a digit-reversed value (Burley 2020, after Laine and Karras 2011): every
+/// step flips a bit by a function of the bits below it, i.e. of the coarser digits, so each
+/// digit is permuted depending on the digits before it, as a nested uniform scramble does.
+#[inline]
+pub fn owen_scramble_rev(mut v: u32, seed: u32) -> u32 {
+    v ^= v.wrapping_mul(0x3d20_adea);
+    v = v.wrapping_add(seed);
+    v = v.wrapping_mul((seed >> 16) | 1);
+    v ^= v.wrapping_mul(0x0552_6c56);
+    v ^= v.wrapping_mul(0x53a2_2864);
+    v
+}
+
+/// A nested scramble of an index: bit `i` is flipped by a function of the bits above it and
+/// the seed, the same construction as [`owen_scramble_rev`] on the bit-reversed index, in 64
+/// bits. It maps every aligned block of `2^k` indices onto an aligned block of `2^k`, and the
+/// low (pass) bits of a pixel are permuted by its own high (Morton) bits.
+#[inline]
+pub fn nested_scramble(index: u64, seed: u64) -> u64 {
+    nested_scramble_rev(index.reverse_bits(), seed).reverse_bits()
+}
+
+/// [`nested_scramble`] on the bit-reversed index, returning it bit-reversed: each step flips
+/// a bit by a function of the bits below it.
+#[inline]
+pub fn nested_scramble_rev(mut v: u64, seed: u64) -> u64 {
+    v ^= v.wrapping_mul(0x3d20_adea_9b5c_6f12);
+    v = v.wrapping_add(seed);
+    v = v.wrapping_mul((seed >> 32) | 1);
+    v ^= v.wrapping_mul(0x0552_6c56_e1a4_c3d6);
+    v ^= v.wrapping_mul(0x53a2_2864_27f0_5b8a);
+    v
+}
+
+/// A 64-bit finaliser (pbrt's `MixBits`): every input bit affects every output bit.
+#[inline]
+pub fn mix_bits(mut v: u64) -> u64 {
+    v ^= v >> 31;
+    v = v.wrapping_mul(0x7fb5_d329_728e_a185);
+    v ^= v >> 27;
+    v = v.wrapping_mul(0x81da_def4_bc2d_d44d);
+    v ^ (v >> 33)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The second dimension's generator matrix columns as pbrt-v4's `SobolMatrices32` lists
+    /// them (output digit 0 in the top bit): index bits 0–7, 31 and 32.
+    #[test]
+    fn second_dimension_matches_pbrt_matrices() {
+        let columns: [(u32, u32); 10] = [
+            (0, 0x8000_0000),
+            (1, 0xc000_0000),
+            (2, 0xa000_0000),
+            (3, 0xf000_0000),
+            (4, 0x8800_0000),
+            (5, 0xcc00_0000),
+            (6, 0xaa00_0000),
+            (7, 0xff00_0000),
+            (31, 0xffff_ffff),
+            (32, 0x8000_0000),
+        ];
+        for (j, column) in columns {
+            assert_eq!(sobol1_rev(1 << j).reverse_bits(), column, "column {j}");
+        }
+        // Linear over GF(2): the point of a sum of index bits is the XOR of their columns.
+        assert_eq!(sobol1_rev(0b101), sobol1_rev(0b100) ^ sobol1_rev(0b001));
+    }
+
+    #[test]
+    fn nested_scramble_keeps_aligned_blocks() {
+        for seed in [1u64, 0xdead_beef, u64::MAX] {
+            for k in [1u32, 4, 8] {
+                let base = 0x1234_5600_u64 << 8;
+                let mut image: Vec<u64> = (0..1u64 << k)
+                    .map(|s| nested_scramble(base | s, seed))
+                    .collect();
+                let block = image[0] >> k;
+                assert!(image.iter().all(|&i| i >> k == block));
+                image.sort_unstable();
+                image.dedup();
+                assert_eq!(image.len(), 1 << k, "not a bijection on the block");
+            }
+        }
+    }
+
+    #[test]
+    fn morton_interleaves() {
+        assert_eq!(morton2(0, 0), 0);
+        assert_eq!(morton2(1, 0), 1);
+        assert_eq!(morton2(0, 1), 2);
+        assert_eq!(morton2(3, 3), 15);
+        assert_eq!(morton2(u32::MAX, 0), 0x5555_5555_5555_5555);
+    }
+}
