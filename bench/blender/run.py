@@ -45,6 +45,11 @@ def args():
     p.add_argument("--spp", type=int, default=1024, help="Cycles samples per pixel per seed")
     p.add_argument("--pv-spp", type=int, default=1024, help="portalview spp per seed")
     p.add_argument("--strategy", default="antishadow")
+    p.add_argument(
+        "--sampler",
+        default="independent",
+        help="portalview's sampler: the block test needs each renderer's variance from two seeds",
+    )
     p.add_argument("--triangulate", action="store_true", help="Suzanne's quads as triangles")
     p.add_argument(
         "--mitsuba-python",
@@ -376,7 +381,7 @@ def main():
             [
                 a.portalview, "render", "--scene", gltf, "--width", str(WIDTH),
                 "--height", str(HEIGHT), "--spp", str(a.pv_spp), "--seed", str(seed),
-                "--strategy", a.strategy, "--out", path,
+                "--strategy", a.strategy, "--sampler", a.sampler, "--out", path,
             ],
             check=True,
         )

@@ -16,7 +16,10 @@
 //! pixels' samples also tile one larger net (blue-noise error) at exactly that count. A
 //! progressive viewer does not know its sample count, so the pass gets a fixed 16 bits
 //! ([`PASSES_PER_EPOCH`]): a pixel's own samples stay stratified at every pass count, and the
-//! blue-noise tiling between pixels is given up. Passes beyond 2^16 start a new epoch with
+//! blue-noise tiling between pixels is given up. Then the pixel's bits only reach the last
+//! bits of each point, so with one output scramble for all pixels every pixel would see nearly
+//! the same net, and neighbouring pixels' errors would be alike (blotches, not noise): the
+//! output scrambles are keyed by the pixel too, which makes pixels' errors independent. Passes beyond 2^16 start a new epoch with
 //! independent scrambles, which keeps the estimate unbiased.
 
 /// Passes per epoch: the pass occupies the low `LOG2_PASSES` bits of the index.
@@ -32,6 +35,9 @@ pub struct ZSobol {
     index_rev: u64,
     /// The seed and epoch, hashed.
     key: u64,
+    /// The pixel, hashed: it keys the output scrambles, so each pixel's points are a net
+    /// scrambled on its own.
+    pixel_key: u64,
     /// Draws so far: each one is its own (padded) dimension.
     dimension: u64,
 }
@@ -44,6 +50,7 @@ impl ZSobol {
         ZSobol {
             index_rev: index.reverse_bits(),
             key: mix_bits(seed ^ mix_bits(epoch.wrapping_add(0x5851_F42D_4C95_7F2D))),
+            pixel_key: mix_bits(morton2(x, y) ^ 0xD1B5_4A32_D192_ED03),
             dimension: 0,
         }
     }
@@ -54,7 +61,7 @@ impl ZSobol {
         let h = mix_bits(self.key ^ self.dimension.wrapping_mul(0x9E37_79B9_7F4A_7C15));
         self.dimension += 1;
         let index = nested_scramble_rev(self.index_rev, h).reverse_bits();
-        (index, mix_bits(h))
+        (index, mix_bits(h ^ self.pixel_key))
     }
 
     /// Uniform in [0, 1): the first Sobol' dimension (van der Corput) of this draw's index.
