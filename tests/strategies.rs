@@ -8,6 +8,7 @@
 //! Every check has a negative case. Run in release.
 
 mod common;
+use common::{block_differences, chi_square_critical, consistent};
 
 use glam::{Vec2, Vec3};
 use portalview::asset::builtin;
@@ -334,13 +335,6 @@ fn sampled_pdf_equals_evaluated_pdf() {
             }
         }
     }
-}
-
-/// Wilson–Hilferty's approximation of the chi-square quantile at significance 1e-3.
-fn chi_square_critical(dof: usize) -> f64 {
-    let k = dof as f64;
-    let z = 3.090; // the standard normal's 0.999 quantile
-    k * (1.0 - 2.0 / (9.0 * k) + z * (2.0 / (9.0 * k)).sqrt()).powi(3)
 }
 
 /// A rectangle holding a planar polygon, in its plane: the cells of a grid over it bin the
@@ -698,82 +692,6 @@ fn portal_pdf_support() {
     let through = (portal.polygon.centroid() - x).normalize();
     assert!(portal_pdf(portal, x, through) > 0.0);
     assert_eq!(portal_pdf(portal, x, -through), 0.0);
-}
-
-/// One block of a comparison of two images: the mean of the reference `b`, and the difference
-/// `a − b` with its standard error.
-#[derive(Clone, Copy, Debug)]
-struct Block {
-    mean: f64,
-    difference: f64,
-    se: f64,
-}
-
-/// Per-block differences between two images (blocks of `b × b` pixels, luminance), image `a`
-/// scaled by `scale_a` (1 but for the sensitivity check): the standard error of each block's
-/// difference comes from the per-pixel sample variances of both. Blocks darker than 1e-3 of
-/// the brightest carry no information at these sample counts (their variance estimates rest
-/// on a handful of rare hits), so they are left out.
-fn block_differences(a: &Film, b: &Film, block: u32, scale_a: f64) -> Vec<Block> {
-    let lum = |c: Vec3| (c.x + c.y + c.z) as f64 / 3.0;
-    let (ma, va, mb, vb) = (
-        a.mean(),
-        a.variance_of_mean(),
-        b.mean(),
-        b.variance_of_mean(),
-    );
-    let mut blocks = vec![];
-    for by in 0..a.height / block {
-        for bx in 0..a.width / block {
-            let (mut sa, mut sb, mut vsum, mut n) = (0.0, 0.0, 0.0, 0.0);
-            for y in by * block..(by + 1) * block {
-                for x in bx * block..(bx + 1) * block {
-                    let i = (y * a.width + x) as usize;
-                    sa += scale_a * lum(ma[i]);
-                    sb += lum(mb[i]);
-                    vsum += scale_a * scale_a * lum(va[i]) + lum(vb[i]);
-                    n += 1.0;
-                }
-            }
-            blocks.push((sa / n, sb / n, vsum.sqrt() / n));
-        }
-    }
-    let brightest = blocks.iter().map(|b| b.0.max(b.1)).fold(0.0, f64::max);
-    blocks
-        .into_iter()
-        .filter(|&(ma, mb, se)| se > 0.0 && ma.max(mb) > 1e-3 * brightest)
-        .map(|(ma, mb, se)| Block {
-            mean: mb,
-            difference: ma - mb,
-            se,
-        })
-        .collect()
-}
-
-/// Whether two independent estimates of one image agree. Their blocks' z-scores `z_i` must look
-/// like N(0, 1): sum of squares within chi-square at 1e-3, no block beyond 5 sigma. And the
-/// projection of the z-scores on the pattern a global scale error `k` would give them,
-/// `E[z_i] = k · m_i / se_i`, must be within 4: `T = Σ z_i·w_i / |w|`, `w_i = m_i / se_i`, is
-/// N(0, 1) for agreeing images, and the most powerful test of a scale error, which the
-/// chi-square over all blocks dilutes among the noisy ones.
-fn consistent(blocks: &[Block]) -> bool {
-    let z: Vec<f64> = blocks.iter().map(|b| b.difference / b.se).collect();
-    let ss: f64 = z.iter().map(|v| v * v).sum();
-    ss <= chi_square_critical(z.len())
-        && z.iter().all(|v| v.abs() < 5.0)
-        && scale_statistic(blocks).abs() <= 4.0
-}
-
-/// `T` of [`consistent`].
-fn scale_statistic(blocks: &[Block]) -> f64 {
-    let w: Vec<f64> = blocks.iter().map(|b| b.mean / b.se).collect();
-    let norm = w.iter().map(|v| v * v).sum::<f64>().sqrt();
-    blocks
-        .iter()
-        .zip(&w)
-        .map(|(b, w)| b.difference / b.se * w)
-        .sum::<f64>()
-        / norm
 }
 
 /// An image with one path vertex after the camera (direct light, MIS against BSDF sampling);

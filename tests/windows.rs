@@ -8,6 +8,7 @@
 //! at alpha = 0 on the half-covered window. Run in release.
 
 mod common;
+use common::{block_differences, consistent};
 
 use glam::{Mat4, Vec2, Vec3};
 use portalview::asset::builtin;
@@ -396,70 +397,6 @@ fn window_samples_pass_chi_square_and_other_techniques_fail_it() {
 }
 
 // ---- images ----
-
-/// One block of a comparison of two images.
-#[derive(Clone, Copy, Debug)]
-struct Block {
-    mean: f64,
-    difference: f64,
-    se: f64,
-}
-
-/// Per-block differences of luminance (blocks of `block × block` pixels, `a` scaled by
-/// `scale_a`), with standard errors from both images' per-pixel variances; blocks darker than
-/// 1e-3 of the brightest are left out (as in `tests/strategies.rs`).
-fn block_differences(a: &Film, b: &Film, block: u32, scale_a: f64) -> Vec<Block> {
-    let lum = |c: Vec3| (c.x + c.y + c.z) as f64 / 3.0;
-    let (ma, va, mb, vb) = (
-        a.mean(),
-        a.variance_of_mean(),
-        b.mean(),
-        b.variance_of_mean(),
-    );
-    let mut blocks = vec![];
-    for by in 0..a.height / block {
-        for bx in 0..a.width / block {
-            let (mut sa, mut sb, mut vsum, mut n) = (0.0, 0.0, 0.0, 0.0);
-            for y in by * block..(by + 1) * block {
-                for x in bx * block..(bx + 1) * block {
-                    let i = (y * a.width + x) as usize;
-                    sa += scale_a * lum(ma[i]);
-                    sb += lum(mb[i]);
-                    vsum += scale_a * scale_a * lum(va[i]) + lum(vb[i]);
-                    n += 1.0;
-                }
-            }
-            blocks.push((sa / n, sb / n, vsum.sqrt() / n));
-        }
-    }
-    let brightest = blocks.iter().map(|b| b.0.max(b.1)).fold(0.0, f64::max);
-    blocks
-        .into_iter()
-        .filter(|&(ma, mb, se)| se > 0.0 && ma.max(mb) > 1e-3 * brightest)
-        .map(|(ma, mb, se)| Block {
-            mean: mb,
-            difference: ma - mb,
-            se,
-        })
-        .collect()
-}
-
-fn chi_square_critical(dof: usize) -> f64 {
-    let k = dof as f64;
-    let z = 3.090;
-    k * (1.0 - 2.0 / (9.0 * k) + z * (2.0 / (9.0 * k)).sqrt()).powi(3)
-}
-
-/// Block z-scores look like N(0, 1) (sum of squares within chi-square at 1e-3, none beyond 5),
-/// and their projection on a global scale error is within 4 (see `tests/strategies.rs`).
-fn consistent(blocks: &[Block]) -> bool {
-    let z: Vec<f64> = blocks.iter().map(|b| b.difference / b.se).collect();
-    let ss: f64 = z.iter().map(|v| v * v).sum();
-    let w: Vec<f64> = blocks.iter().map(|b| b.mean / b.se).collect();
-    let norm = w.iter().map(|v| v * v).sum::<f64>().sqrt();
-    let scale: f64 = z.iter().zip(&w).map(|(z, w)| z * w).sum::<f64>() / norm;
-    ss <= chi_square_critical(z.len()) && z.iter().all(|v| v.abs() < 5.0) && scale.abs() <= 4.0
-}
 
 fn render_image(
     scene: &Scene,
