@@ -19,7 +19,7 @@ use super::punctual::Lamp;
 use super::{LightSet, Strategy, Technique};
 use crate::sampling::polygon::{Plane, Verts, clip_convex, convex_hull_in_plane, merge_close};
 use crate::sampling::spherical::SphericalPolygon;
-use crate::sampling::{Distribution1D, cyclic_pairs};
+use crate::sampling::{Distribution1D, cyclic_pairs, pick_by_weight};
 
 /// The most portals one shading point can use for one light.
 pub const MAX_TERMS: usize = 8;
@@ -311,13 +311,8 @@ impl LightSampler {
             (Technique::Light, from_light(light.sample_point(u)?)?)
         } else {
             // Rescale the remaining share to pick the portal term.
-            let mut v = (u_technique - ctx.alpha) / (1.0 - ctx.alpha);
-            let term = ctx.terms.iter().find(|t| {
-                let hit = v < t.weight;
-                v -= t.weight;
-                hit
-            });
-            let term = term.or(ctx.terms.last())?;
+            let v = (u_technique - ctx.alpha) / (1.0 - ctx.alpha);
+            let term = pick_by_weight(&ctx.terms, |t| t.weight, v)?;
             let portal = &scene.portals()[term.portal];
             let sampled = match term.technique {
                 Technique::Light => from_light(light.sample_point(u)?)?,

@@ -16,6 +16,7 @@ use super::antishadow::Region;
 use super::estimator::MAX_TERMS;
 use super::window::{GuidedBox, Window};
 use super::{LightSet, Strategy, Technique};
+use crate::sampling::pick_by_weight;
 use crate::sampling::spherical::SphericalPolygon;
 
 /// How one direction towards the sky is drawn.
@@ -236,13 +237,8 @@ impl SkySampler {
         let (technique, (wi, technique_pdf)) = if !ctx.uses_windows || u_technique < ctx.alpha {
             (SkyTechnique::Environment, env.sample(u)?)
         } else {
-            let mut v = (u_technique - ctx.alpha) / (1.0 - ctx.alpha);
-            let term = ctx.terms.iter().find(|t| {
-                let hit = v < t.weight;
-                v -= t.weight;
-                hit
-            });
-            let term = term.or(ctx.terms.last())?;
+            let v = (u_technique - ctx.alpha) / (1.0 - ctx.alpha);
+            let term = pick_by_weight(&ctx.terms, |t| t.weight, v)?;
             let window = &scene.windows()[term.window];
             let sampled = match term.technique {
                 SkyTechnique::Environment => env.sample(u)?,

@@ -144,6 +144,18 @@ fn splitmix64(x: u64) -> u64 {
     z ^ (z >> 31)
 }
 
+/// The item whose share of `[0, 1)` holds `v`, the shares being `weight(item)` in order; the
+/// last one when round-off leaves `v` just past them all.
+pub fn pick_by_weight<T>(items: &[T], weight: impl Fn(&T) -> f32, mut v: f32) -> Option<&T> {
+    let picked = items.iter().find(|t| {
+        let w = weight(t);
+        let hit = v < w;
+        v -= w;
+        hit
+    });
+    picked.or(items.last())
+}
+
 /// `(v_i, v_{i+1})` around a closed polygon, the last vertex paired with the first. Hot loops
 /// use this rather than indexing by `(i + 1) % n`, whose integer division costs more than the
 /// geometry each step does.
