@@ -120,12 +120,29 @@ impl PortalEditor {
     }
 
     /// Adds a portal the shape of light `light`, a little in front of its emitting side, and
-    /// selects it.
+    /// selects it. A light of any other shape (a bulb, a tube) gets a square below it, as wide
+    /// as the light and facing down, the way a lamp hangs.
     pub fn add_for_light(&mut self, scene: &Scene, light: usize) -> Option<usize> {
         let l = scene.geometry.lights.get(light)?;
-        let polygon = l.polygon.as_ref()?;
-        let offset = polygon.normal() * (0.5 * polygon.area().sqrt());
-        let corners: Vec<Vec3> = polygon.vertices().iter().map(|&p| p + offset).collect();
+        let corners: Vec<Vec3> = match l.polygon.as_ref() {
+            Some(polygon) => {
+                let offset = polygon.normal() * (0.5 * polygon.area().sqrt());
+                polygon.vertices().iter().map(|&p| p + offset).collect()
+            }
+            None => {
+                let (lo, hi) = l
+                    .corners()
+                    .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), p| {
+                        (lo.min(p), hi.max(p))
+                    });
+                let half = 0.5 * (hi - lo).max_element().max(1e-6);
+                let c = Vec3::new(0.5 * (lo.x + hi.x), lo.y - half, 0.5 * (lo.z + hi.z));
+                [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)]
+                    .iter()
+                    .map(|&(a, b)| c + Vec3::new(a * half, 0.0, b * half))
+                    .collect()
+            }
+        };
         let taken = |name: &str| self.portals.iter().any(|p| p.name == name);
         let name = (1..)
             .map(|k| format!("portal_{}_{k}", l.name))

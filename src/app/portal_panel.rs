@@ -41,10 +41,9 @@ impl PortalViewApp {
         }
         ui.horizontal(|ui| {
             for (i, light) in current.scene.geometry.lights.iter().enumerate() {
-                if light.polygon.is_some()
-                    && ui
-                        .button(format!("Add portal for {}", light.name))
-                        .clicked()
+                if ui
+                    .button(format!("Add portal for {}", light.name))
+                    .clicked()
                 {
                     commands.push(Command::AddPortal(i));
                 }

@@ -13,6 +13,9 @@ use super::{Command, Current, PortalViewApp};
 use crate::camera::Camera;
 use crate::light::antishadow::Region;
 use crate::light::area::luminance;
+
+/// Triangles of non-polygon lights outlined in the viewport, at most (the rest is not drawn).
+const MAX_LIGHT_TRIANGLES_DRAWN: usize = 4096;
 use crate::sampling::polygon::ConvexPolygon;
 
 /// Maps world points to screen points through the camera, for an image drawn in `rect`.
@@ -102,11 +105,30 @@ impl Current {
                 }
             }
         }
+        let light_colour = Color32::from_rgb(255, 170, 60);
         for light in &self.rendered.geometry.lights {
             if let Some(p) = &light.polygon {
                 for (a, b) in p.edges() {
                     if let Some(s) = projector.segment(a, b) {
-                        painter.line_segment(s, Stroke::new(1.5, Color32::from_rgb(255, 170, 60)));
+                        painter.line_segment(s, Stroke::new(1.5, light_colour));
+                    }
+                }
+            }
+        }
+        // A light of any other shape (a bulb, a tube) as its triangles, up to a budget.
+        let mut budget = MAX_LIGHT_TRIANGLES_DRAWN;
+        for light in self
+            .rendered
+            .geometry
+            .lights
+            .iter()
+            .filter(|l| l.polygon.is_none())
+        {
+            for [a, b, c] in light.triangles().take(budget) {
+                budget -= 1;
+                for (p, q) in [(a, b), (b, c), (c, a)] {
+                    if let Some(s) = projector.segment(p, q) {
+                        painter.line_segment(s, Stroke::new(0.5, light_colour));
                     }
                 }
             }

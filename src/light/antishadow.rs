@@ -13,6 +13,7 @@
 
 use glam::{DVec3, Vec3};
 
+use super::hull::{self, HalfSpace, HullKind};
 use crate::sampling::polygon::{ConvexPolygon, MAX_CLIP_VERTICES, Plane, Verts, merge_close_by};
 
 /// Where `x` lies relative to one portal of a light.
@@ -99,6 +100,21 @@ pub struct AntishadowPlanes {
     light_overlap: Planes,
     /// Diameter of portal and light together: the scale of every tolerance.
     scale: f32,
+    /// For a light that is not one planar convex polygon: the planes through its bounding
+    /// solid that replace the light-plane, light-overlap and antiantumbra planes (§3.6).
+    hull: Option<Box<HullPlanes>>,
+}
+
+/// The planes of a (portal, solid light) pair beyond those of the portal's edges.
+#[derive(Clone, Debug)]
+struct HullPlanes {
+    /// Planes with the portal on their positive side and the solid on their negative side:
+    /// faces of the solid, and planes through a portal vertex and two solid vertices. `x` on
+    /// the negative side of one of them sees no part of the solid through the portal.
+    outside: Vec<Plane>,
+    /// Planes through a portal vertex and two solid vertices, the solid on their negative
+    /// side: `x` positive on all of them sees the solid through every portal vertex.
+    antiantumbra: Vec<Plane>,
 }
 
 /// An edge of the antiumbra or antiantumbra volume: the segment from a portal vertex to a light
@@ -202,7 +218,144 @@ impl AntishadowPlanes {
             antiantumbra: to_f32(&antiantumbra),
             light_overlap: to_f32(&light_overlap),
             scale: scale as f32,
+            hull: None,
         })
+    }
+
+    /// The planes for a light of any shape (`docs/method.md` §3.6): `light_points` are its
+    /// vertices; the solid that stands in for it is their convex hull, or a prism holding them
+    /// when the hull seen from a point would have too many vertices to project and clip. The
+    /// solid is cut behind the portal plane; the portal-edge planes are those of §3.2 against
+    /// its vertices; the others come from the solid's faces and from the planes through a
+    /// portal vertex and two of its vertices that leave it on one side.
+    pub fn new_hull(
+        portal: &ConvexPolygon,
+        light_points: &[Vec3],
+    ) -> Result<Self, AntishadowError> {
+        let scale = f64::from(diameter(portal.vertices().iter().chain(light_points)));
+        let strict = STRICT_TOLERANCE * scale;
+        let tol = SIDE_TOLERANCE * scale;
+        let portal_plane = PlaneF64::of(portal);
+        let portal_vertices: Vec<DVec3> = portal
+            .vertices()
+            .iter()
+            .map(|v| portal_plane.project(v.as_dvec3()))
+            .collect();
+        let points = hull::distinct_points(light_points.iter().map(|v| v.as_dvec3()));
+        let deepest = points
+            .iter()
+            .map(|&l| -portal_plane.signed_distance(l))
+            .fold(f64::NEG_INFINITY, f64::max);
+        if deepest.is_nan() || deepest <= strict {
+            return Err(AntishadowError::LightInFrontOfPortal);
+        }
+        // Behind the portal plane: `n · p <= d` for the plane's front normal.
+        let cut = HalfSpace {
+            n: portal_plane.n,
+            d: portal_plane.d,
+        };
+        // Room for the solid's silhouette and the portal's edges in one clipped projection.
+        let room = MAX_CLIP_VERTICES - portal_vertices.len();
+        let mut behind = None;
+        for kind in [HullKind::Exact, HullKind::Prism] {
+            let planes = hull::bounding_half_spaces(&points, kind)
+                .ok_or(AntishadowError::Degenerate("light hull"))?;
+            let clipped = hull::clip(&planes, cut, hull::diameter(&points));
+            if clipped.vertices.len() <= room {
+                behind = Some(clipped);
+                break;
+            }
+        }
+        let Some(clipped) = behind else {
+            return Err(AntishadowError::Degenerate("light hull"));
+        };
+        let solid = clipped.vertices;
+        if solid.len() < 3 {
+            return Err(AntishadowError::LightInFrontOfPortal);
+        }
+        let (antiumbra, portal_overlap) = edge_planes(
+            &portal_vertices,
+            portal_plane.n,
+            -1.0,
+            &solid,
+            scale,
+            "antiumbra",
+        )?;
+        let portal_side = |q: &PlaneF64| {
+            portal_vertices
+                .iter()
+                .all(|&p| q.signed_distance(p) >= -tol)
+        };
+        let mut outside: Vec<PlaneF64> = clipped
+            .faces
+            .iter()
+            .map(|h| PlaneF64 { n: h.n, d: h.d })
+            .filter(|q| portal_side(q))
+            .collect();
+        let mut antiantumbra: Vec<PlaneF64> = Vec::new();
+        let add = |list: &mut Vec<PlaneF64>, q: PlaneF64| {
+            if !list
+                .iter()
+                .any(|o| o.n.dot(q.n) > 1.0 - 1e-10 && (o.d - q.d).abs() <= tol)
+            {
+                list.push(q);
+            }
+        };
+        for &p in &portal_vertices {
+            for i in 0..solid.len() {
+                for k in i + 1..solid.len() {
+                    let (a, b) = (solid[i] - p, solid[k] - p);
+                    let m = a.cross(b);
+                    if m.length() <= COLLINEAR_TOLERANCE * a.length() * b.length() {
+                        continue;
+                    }
+                    let m = m.normalize();
+                    let (lo, hi) = solid
+                        .iter()
+                        .map(|&v| m.dot(v - p))
+                        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), h| {
+                            (lo.min(h), hi.max(h))
+                        });
+                    // Oriented with the solid on the negative side; planes through it skipped.
+                    let n = if hi <= tol {
+                        m
+                    } else if lo >= -tol {
+                        -m
+                    } else {
+                        continue;
+                    };
+                    let q = PlaneF64 { n, d: n.dot(p) };
+                    if portal_side(&q) {
+                        add(&mut outside, q);
+                    }
+                    add(&mut antiantumbra, q);
+                }
+            }
+        }
+        let to_f32 = |planes: &[PlaneF64]| planes.iter().map(|q| q.to_f32()).collect::<Planes>();
+        let to_vec = |planes: &[PlaneF64]| planes.iter().map(|q| q.to_f32()).collect::<Vec<_>>();
+        Ok(AntishadowPlanes {
+            portal: portal.clone(),
+            light_behind: solid.iter().map(|v| v.as_vec3()).collect(),
+            portal_plane: portal_plane.to_f32(),
+            // Unused for a solid (its faces are among the outside planes).
+            light_plane: portal_plane.flipped().to_f32(),
+            antiumbra: to_f32(&antiumbra),
+            portal_overlap: to_f32(&portal_overlap),
+            antiantumbra: Planes::new(),
+            light_overlap: Planes::new(),
+            scale: scale as f32,
+            hull: Some(Box::new(HullPlanes {
+                outside: to_vec(&outside),
+                antiantumbra: to_vec(&antiantumbra),
+            })),
+        })
+    }
+
+    /// Whether the light is a solid (§3.6) rather than one planar convex polygon: its clipped
+    /// vertices are then a point set whose projection must be hulled.
+    pub fn is_hull(&self) -> bool {
+        self.hull.is_some()
     }
 
     /// The region of `x`, in the order of `docs/method.md` §3.3. Points on a plane count as outside the
@@ -211,6 +364,19 @@ impl AntishadowPlanes {
         let positive = |q: &Plane| q.signed_distance(x) > 0.0;
         if !positive(&self.portal_plane) {
             return Region::Behind;
+        }
+        if let Some(hull) = &self.hull {
+            return if !self.portal_overlap.iter().all(positive)
+                || !hull.outside.iter().all(positive)
+            {
+                Region::Outside
+            } else if self.antiumbra.iter().all(positive) {
+                Region::Antiumbra
+            } else if hull.antiantumbra.iter().all(positive) {
+                Region::Antiantumbra
+            } else {
+                Region::Antipenumbra
+            };
         }
         // The pencil arguments behind the light-edge planes need x on the emitting side.
         if !positive(&self.light_plane) {
@@ -228,7 +394,8 @@ impl AntishadowPlanes {
         }
     }
 
-    /// The light clipped to behind the portal plane (counter-clockwise around the light normal).
+    /// The light clipped to behind the portal plane (counter-clockwise around the light normal);
+    /// for a solid light ([`Self::is_hull`]), the vertices of its solid behind that plane.
     pub fn light_behind_portal(&self) -> &[Vec3] {
         &self.light_behind
     }
@@ -257,6 +424,11 @@ impl AntishadowPlanes {
             .chain(&self.portal_overlap)
             .chain(&self.antiantumbra)
             .chain(&self.light_overlap)
+            .chain(
+                self.hull
+                    .iter()
+                    .flat_map(|h| h.outside.iter().chain(&h.antiantumbra)),
+            )
             .map(|q| q.signed_distance(x).abs())
             .fold(f32::INFINITY, f32::min)
     }
@@ -274,7 +446,9 @@ impl AntishadowPlanes {
         };
         let portal = self.portal.vertices();
         let light = &self.light_behind[..];
+        // A solid's antiantumbra planes are not one per light edge: only antiumbra edges.
         let (np, nl) = (portal.len(), light.len());
+        let nl_edges = if self.hull.is_some() { 0 } else { nl };
         // Vertex i is shared by edges i - 1 and i, whose planes are stored at those indices.
         let antiumbra = (0..np).flat_map(move |i| {
             let (a, b) = (&self.antiumbra[(i + np - 1) % np], &self.antiumbra[i]);
@@ -287,7 +461,7 @@ impl AntishadowPlanes {
                     region: Region::Antiumbra,
                 })
         });
-        let antiantumbra = (0..nl).flat_map(move |j| {
+        let antiantumbra = (0..nl_edges).flat_map(move |j| {
             let (a, b) = (&self.antiantumbra[(j + nl - 1) % nl], &self.antiantumbra[j]);
             portal
                 .iter()
@@ -483,12 +657,48 @@ pub fn classify_brute_force(portal: &ConvexPolygon, light: &ConvexPolygon, x: Ve
     if behind.len() < 3 {
         return Region::Outside;
     }
+    overlap_region(portal, portal_plane, x, &behind, false)
+}
+
+/// [`classify_brute_force`] for a solid light (§3.6): `solid` are the vertices of its solid
+/// behind the portal plane ([`AntishadowPlanes::light_behind_portal`]); their projection from
+/// `x` is hulled before it is clipped.
+pub fn classify_brute_force_hull(portal: &ConvexPolygon, solid: &[Vec3], x: Vec3) -> Region {
+    let x = x.as_dvec3();
+    let portal_plane = PlaneF64::of(portal);
+    // Written as an "in front" test so that a NaN x is behind, as in `classify`.
+    let in_front_of_portal = portal_plane.signed_distance(x) > 0.0;
+    if !in_front_of_portal {
+        return Region::Behind;
+    }
+    let solid: Vec<DVec3> = solid.iter().map(|v| v.as_dvec3()).collect();
+    overlap_region(portal, portal_plane, x, &solid, true)
+}
+
+/// The region from the areas of the projection of `behind` (points behind the portal plane,
+/// a convex polygon in order unless `hull`), the portal and their intersection.
+fn overlap_region(
+    portal: &ConvexPolygon,
+    portal_plane: PlaneF64,
+    x: DVec3,
+    behind: &[DVec3],
+    hull: bool,
+) -> Region {
+    let height = portal_plane.signed_distance(x);
     // Central projection from x: each v is behind or on the plane and x strictly in front, so
     // the segment x→v crosses the plane once, at 0 < t <= 1.
     let projected: Vec<DVec3> = behind
         .iter()
         .map(|&v| x + height / (height - portal_plane.signed_distance(v)) * (v - x))
         .collect();
+    let projected = if hull {
+        hull_in_plane(&projected, portal_plane.n)
+    } else {
+        projected
+    };
+    if projected.len() < 3 {
+        return Region::Outside;
+    }
     // Sutherland–Hodgman against the prism over each portal edge: with counter-clockwise
     // vertices around the portal normal, `n × edge` points inward. The subject's winding does
     // not matter (it comes out either way, depending on x), as areas are taken unsigned.
@@ -530,6 +740,43 @@ pub fn classify_brute_force(portal: &ConvexPolygon, light: &ConvexPolygon, x: Ve
     } else {
         Region::Antipenumbra
     }
+}
+
+/// The convex hull of points lying in the plane with normal `n`, counter-clockwise around it
+/// (Andrew's monotone chain in f64).
+fn hull_in_plane(points: &[DVec3], n: DVec3) -> Vec<DVec3> {
+    let Some(&origin) = points.first() else {
+        return Vec::new();
+    };
+    let u = n.any_orthonormal_vector();
+    let v = n.cross(u);
+    let mut flat: Vec<(f64, f64, DVec3)> = points
+        .iter()
+        .map(|&p| ((p - origin).dot(u), (p - origin).dot(v), p))
+        .collect();
+    flat.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.total_cmp(&b.1)));
+    let cross = |o: &(f64, f64, DVec3), a: &(f64, f64, DVec3), b: &(f64, f64, DVec3)| {
+        (a.0 - o.0) * (b.1 - o.1) - (a.1 - o.1) * (b.0 - o.0)
+    };
+    let mut hull: Vec<(f64, f64, DVec3)> = Vec::with_capacity(2 * flat.len());
+    for pass in 0..2 {
+        let start = hull.len();
+        for k in 0..flat.len() {
+            let p = if pass == 0 {
+                flat[k]
+            } else {
+                flat[flat.len() - 1 - k]
+            };
+            while hull.len() >= start + 2
+                && cross(&hull[hull.len() - 2], &hull[hull.len() - 1], &p) <= 0.0
+            {
+                hull.pop();
+            }
+            hull.push(p);
+        }
+        hull.pop();
+    }
+    hull.into_iter().map(|h| h.2).collect()
 }
 
 /// The area of a convex polygon as a fan around its first vertex: relative coordinates keep
@@ -695,6 +942,83 @@ mod tests {
                 assert!(e.light_vertex.abs_diff_eq(expected, 1e-5), "{e:?}");
             }
         }
+    }
+
+    /// Solids of random points (a cloud, 6 to 40 of them, so some take the prism; a third
+    /// straddling the portal plane) behind tilted portals: the planes agree with the brute force
+    /// outside a thin band, and every region occurs.
+    #[test]
+    fn solid_planes_match_brute_force() {
+        use crate::sampling::Rng;
+        let mut rng = Rng::new(41, 42);
+        let mut seen = [0usize; 5];
+        let (mut compared, mut wrong_differs) = (0, 0);
+        for trial in 0..60 {
+            let tilt = Vec3::new(rng.uniform() - 0.5, 1.0, rng.uniform() - 0.5).normalize();
+            let t = tilt.any_orthonormal_vector();
+            let b = tilt.cross(t);
+            let half = 0.05 + 0.4 * rng.uniform();
+            let portal = ConvexPolygon::new(&[
+                -half * t - half * b,
+                half * t - half * b,
+                half * t + half * b,
+                -half * t + half * b,
+            ])
+            .unwrap();
+            // The portal's front is +tilt; the cloud sits below it.
+            let depth = if trial % 3 == 0 { 0.1 } else { 0.6 };
+            let centre = Vec3::new(
+                rng.uniform() - 0.5,
+                -depth - 0.2 * rng.uniform(),
+                rng.uniform() - 0.5,
+            );
+            let count = 6 + (rng.uniform() * 35.0) as usize;
+            let points: Vec<Vec3> = (0..count)
+                .map(|_| {
+                    centre
+                        + 0.6
+                            * Vec3::new(
+                                rng.uniform() - 0.5,
+                                rng.uniform() - 0.5,
+                                rng.uniform() - 0.5,
+                            )
+                })
+                .collect();
+            let Ok(planes) = AntishadowPlanes::new_hull(&portal, &points) else {
+                continue;
+            };
+            assert!(planes.is_hull());
+            // Negative case: the planes of a solid 3 % larger must disagree somewhere.
+            let larger: Vec<Vec3> = points
+                .iter()
+                .map(|&p| centre + 1.03 * (p - centre))
+                .collect();
+            let wrong = AntishadowPlanes::new_hull(&portal, &larger).ok();
+            for _ in 0..400 {
+                let x = Vec3::new(
+                    4.0 * (rng.uniform() - 0.5),
+                    3.0 * rng.uniform() - 0.5,
+                    4.0 * (rng.uniform() - 0.5),
+                );
+                if planes.planes_distance(x) < 1e-4 {
+                    continue;
+                }
+                let region = planes.classify(x);
+                let expected = classify_brute_force_hull(&portal, planes.light_behind_portal(), x);
+                assert_eq!(region, expected, "trial {trial} at {x}");
+                if wrong.as_ref().is_some_and(|w| w.classify(x) != expected) {
+                    wrong_differs += 1;
+                }
+                seen[region as usize] += 1;
+                compared += 1;
+            }
+        }
+        assert!(compared > 15_000, "{compared}");
+        assert!(
+            wrong_differs > 50,
+            "a 3 % larger solid went unnoticed: {wrong_differs}"
+        );
+        assert!(seen.iter().all(|&c| c > 100), "{seen:?}");
     }
 
     #[test]

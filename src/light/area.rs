@@ -23,9 +23,12 @@ pub struct AreaLight {
     triangles: Vec<([Vec3; 3], Vec3)>,
     by_area: Distribution1D,
     area: f32,
-    /// The mesh as one planar convex polygon (front = winding), when it is one; only such
-    /// lights may have portals.
+    /// The mesh as one planar convex polygon (front = winding), when it is one. A portal of
+    /// such a light uses the polygon's exact planes; any other light is a solid for its
+    /// portals (`docs/method.md` §3.6).
     pub polygon: Option<ConvexPolygon>,
+    /// Centre and radius of a sphere holding every triangle: rays that miss it skip them all.
+    bounds: (Vec3, f32),
 }
 
 impl AreaLight {
@@ -37,7 +40,20 @@ impl AreaLight {
         let by_area = Distribution1D::new(triangles.iter().map(|(_, n)| 0.5 * n.length()));
         let area = by_area.total();
         let corners: Vec<[Vec3; 3]> = triangles.iter().map(|(t, _)| *t).collect();
+        let (lo, hi) = corners
+            .iter()
+            .flatten()
+            .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), &p| {
+                (lo.min(p), hi.max(p))
+            });
+        let centre = 0.5 * (lo + hi);
+        let radius = corners
+            .iter()
+            .flatten()
+            .map(|p| p.distance(centre))
+            .fold(0.0, f32::max);
         AreaLight {
+            bounds: (centre, radius * (1.0 + 1e-5)),
             name,
             radiance,
             double_sided,
@@ -53,6 +69,78 @@ impl AreaLight {
 
     pub fn area(&self) -> f32 {
         self.area
+    }
+
+    /// The light's triangles.
+    pub fn triangles(&self) -> impl Iterator<Item = [Vec3; 3]> + '_ {
+        self.triangles.iter().map(|(t, _)| *t)
+    }
+
+    /// The corners of every triangle (shared vertices repeated).
+    pub fn corners(&self) -> impl Iterator<Item = Vec3> + '_ {
+        self.triangles.iter().flat_map(|(t, _)| t.iter().copied())
+    }
+
+    /// The area-weighted centroid of the triangles.
+    pub fn centroid(&self) -> Vec3 {
+        let weighted: Vec3 = self
+            .triangles
+            .iter()
+            .enumerate()
+            .map(|(i, ([a, b, c], _))| (*a + *b + *c) / 3.0 * self.by_area.pmf(i))
+            .sum();
+        weighted
+    }
+
+    /// The nearest point where the ray `o + t·d` (`t > 0`) meets the light, whichever side, and
+    /// `t`; the normal returned is the front of the triangle (or polygon) it meets. Occluders
+    /// are ignored: this is where a direction drawn towards the light lands on it.
+    pub fn intersect(&self, o: Vec3, d: Vec3) -> Option<(LightPoint, f32)> {
+        if let Some(polygon) = &self.polygon {
+            let t = polygon.intersect(o, d)?;
+            return Some((
+                LightPoint {
+                    p: o + t * d,
+                    n: polygon.normal(),
+                },
+                t,
+            ));
+        }
+        // Ray–sphere rejection first: most lights with portals are seen through a small part
+        // of the sky.
+        let (centre, radius) = self.bounds;
+        let oc = centre - o;
+        let along = oc.dot(d);
+        if oc.length_squared() > radius * radius
+            && (along < 0.0 || (oc - along * d).length_squared() > radius * radius)
+        {
+            return None;
+        }
+        self.crossings(o, d).min_by(|a, b| a.1.total_cmp(&b.1))
+    }
+
+    /// Every point where the ray `o + t·d` (`t > 0`) crosses the light's triangles, and its `t`.
+    fn crossings(&self, o: Vec3, d: Vec3) -> impl Iterator<Item = (LightPoint, f32)> + '_ {
+        self.triangles.iter().filter_map(move |&([a, b, c], n)| {
+            let t = intersect_triangle(o, d, a, b, c)?;
+            Some((LightPoint { p: o + t * d, n }, t))
+        })
+    }
+
+    /// The solid-angle density of the directions from `x` that [`Self::sample_point`] produces:
+    /// the sum of [`Self::pdf_solid_angle`] over every crossing of the ray, since a ray may cross
+    /// a bulb or a folded panel more than once. The estimator does not need it (it weights the
+    /// point it drew, in area measure: a point behind another part of the light is occluded and
+    /// contributes nothing); tests integrate it over directions.
+    pub fn direction_pdf(&self, x: Vec3, w: Vec3) -> f32 {
+        if let Some(polygon) = &self.polygon {
+            return polygon
+                .intersect(x, w)
+                .map_or(0.0, |t| self.pdf_solid_angle(t, polygon.normal().dot(w)));
+        }
+        self.crossings(x, w)
+            .map(|(y, t)| self.pdf_solid_angle(t, y.n.dot(w)))
+            .sum()
     }
 
     /// Emitted power, W: `π · Le · A`, twice for two-sided lights (luminance-weighted).
@@ -91,6 +179,29 @@ impl AreaLight {
         }
         dist * dist / (self.area * c)
     }
+}
+
+/// Möller–Trumbore: the ray parameter `t > 0` where `o + t·d` meets triangle `abc`, either side.
+fn intersect_triangle(o: Vec3, d: Vec3, a: Vec3, b: Vec3, c: Vec3) -> Option<f32> {
+    let (e1, e2) = (b - a, c - a);
+    let p = d.cross(e2);
+    let det = e1.dot(p);
+    if det == 0.0 || !det.is_finite() {
+        return None;
+    }
+    let inv = 1.0 / det;
+    let s = o - a;
+    let u = s.dot(p) * inv;
+    if !(0.0..=1.0).contains(&u) {
+        return None;
+    }
+    let q = s.cross(e1);
+    let v = d.dot(q) * inv;
+    if v < 0.0 || u + v > 1.0 {
+        return None;
+    }
+    let t = e2.dot(q) * inv;
+    (t > 0.0 && t.is_finite()).then_some(t)
 }
 
 /// Rec. 709 luminance.

@@ -3,6 +3,7 @@
 pub mod antishadow;
 pub mod area;
 pub mod estimator;
+pub mod hull;
 pub mod portal;
 pub mod punctual;
 

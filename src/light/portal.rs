@@ -1,6 +1,10 @@
 //! Portals: invisible convex polygons marking the opening through which a light is seen.
 
-use super::antishadow::{AntishadowError, AntishadowPlanes};
+use glam::Vec3;
+
+use super::antishadow::{
+    AntishadowError, AntishadowPlanes, Region, classify_brute_force, classify_brute_force_hull,
+};
 use super::area::AreaLight;
 use crate::asset::desc::PortalDesc;
 use crate::sampling::polygon::{ConvexPolygon, PolygonError};
@@ -12,15 +16,10 @@ pub enum PortalError {
     TargetMissing { portal: String, target: String },
     #[error(
         "portal node '{portal}': portal_target '{target}' is a KHR_lights_punctual lamp; a \
-         portal may only target an emissive mesh that is one planar convex polygon (a lamp is \
-         sampled exactly already, in one direction)"
+         portal may only target an emissive mesh (a lamp is sampled exactly already, in one \
+         direction)"
     )]
     TargetIsLamp { portal: String, target: String },
-    #[error(
-        "portal node '{portal}': its light '{target}' is not one planar convex polygon \
-         (a portal may only target such a light)"
-    )]
-    TargetNotPolygon { portal: String, target: String },
     #[error("portal node '{portal}': its mesh {error}")]
     BadPolygon { portal: String, error: PolygonError },
     #[error("portal node '{portal}': portal_light_probability {alpha} is not in [0, 1]")]
@@ -47,8 +46,9 @@ pub struct Portal {
     pub alpha: f32,
     /// The portal, its normal pointing to its front (away from the light).
     pub polygon: ConvexPolygon,
-    /// The light polygon, its normal pointing towards the portal's side.
-    pub light_polygon: ConvexPolygon,
+    /// The light polygon, its normal pointing towards the portal's side; `None` for a light
+    /// of any other shape, which its planes treat as a solid (`docs/method.md` §3.6).
+    pub light_polygon: Option<ConvexPolygon>,
     pub planes: AntishadowPlanes,
     /// The largest distance of a portal vertex from its first: scales the slack of the
     /// portal pdf's inside test (fixed per portal, so not recomputed per evaluation).
@@ -73,27 +73,37 @@ impl Portal {
         let Some(light) = lights.iter().position(|l| l.name == desc.target) else {
             return Err(PortalError::TargetMissing { portal, target });
         };
-        let Some(light_polygon) = lights[light].polygon.clone() else {
-            return Err(PortalError::TargetNotPolygon { portal, target });
-        };
         let polygon = ConvexPolygon::from_triangles(&desc.world_triangles()).map_err(|error| {
             PortalError::BadPolygon {
                 portal: portal.clone(),
                 error,
             }
         })?;
-        let (polygon, light_polygon) = orient(polygon, light_polygon, lights[light].double_sided)
-            .ok_or_else(|| PortalError::Coplanar {
+        let coplanar = || PortalError::Coplanar {
             portal: portal.clone(),
             target: target.clone(),
-        })?;
-        let planes = AntishadowPlanes::new(&polygon, &light_polygon).map_err(|error| {
-            PortalError::Geometry {
-                portal: portal.clone(),
-                target: target.clone(),
-                error,
+        };
+        let geometry = |error| PortalError::Geometry {
+            portal: portal.clone(),
+            target: target.clone(),
+            error,
+        };
+        let (polygon, light_polygon, planes) = match lights[light].polygon.clone() {
+            Some(light_polygon) => {
+                let (polygon, light_polygon) =
+                    orient(polygon, light_polygon, lights[light].double_sided)
+                        .ok_or_else(coplanar)?;
+                let planes = AntishadowPlanes::new(&polygon, &light_polygon).map_err(geometry)?;
+                (polygon, Some(light_polygon), planes)
             }
-        })?;
+            None => {
+                let polygon =
+                    orient_to_solid(polygon, lights[light].centroid()).ok_or_else(coplanar)?;
+                let points: Vec<Vec3> = lights[light].corners().collect();
+                let planes = AntishadowPlanes::new_hull(&polygon, &points).map_err(geometry)?;
+                (polygon, None, planes)
+            }
+        };
         let v0 = polygon.vertices()[0].as_dvec3();
         let reach = polygon
             .vertices()
@@ -111,6 +121,28 @@ impl Portal {
             planes,
         })
     }
+}
+
+impl Portal {
+    /// The region of `x` found without the planes, by projecting the light (or its solid)
+    /// through the portal: a slow reference for tests and the overlay's debug mode.
+    pub fn classify_brute_force(&self, x: Vec3) -> Region {
+        match &self.light_polygon {
+            Some(light) => classify_brute_force(&self.polygon, light, x),
+            None => classify_brute_force_hull(&self.polygon, self.planes.light_behind_portal(), x),
+        }
+    }
+}
+
+/// A portal of a solid light faces away from the light's centroid; `None` when the centroid
+/// lies in the portal's plane.
+fn orient_to_solid(portal: ConvexPolygon, light_centroid: Vec3) -> Option<ConvexPolygon> {
+    let eps = 1e-6 * portal.area().sqrt();
+    let side = portal.plane().signed_distance(light_centroid);
+    if side.abs() <= eps || side.is_nan() {
+        return None;
+    }
+    Some(if side > 0.0 { portal.flipped() } else { portal })
 }
 
 /// Artists flip planes: the portal's front is the side away from the light's centroid, whatever

@@ -137,7 +137,10 @@ impl<'a> Integrator<'a> {
         let mut beta = Vec3::ONE;
         let (mut o, mut d) = (origin, dir);
         // Two context buffers, reused in turn by consecutive vertices (see `fill_context`).
-        let mut contexts = [LightContext::new(), LightContext::new()];
+        // Separate locals, not an array: built in place, whereas an array of two was filled by
+        // copying a 10 KB context per path.
+        let mut even = LightContext::new();
+        let mut odd = LightContext::new();
         let mut previous: Option<(Vec3, bool, f32)> = None;
         stats.camera_rays += 1;
         for depth in 0..=self.settings.max_depth {
@@ -145,7 +148,7 @@ impl<'a> Integrator<'a> {
             if depth == self.settings.max_depth && self.polygon_lights {
                 let prev = previous.map(|(x, picked, bsdf_pdf)| Previous {
                     x,
-                    ctx: picked.then(|| &contexts[(depth as usize + 1) % 2]),
+                    ctx: picked.then_some(if depth % 2 == 0 { &odd } else { &even }),
                     bsdf_pdf,
                 });
                 l += beta * self.emission_along(tracer, o, d, prev.as_ref(), stats);
@@ -184,7 +187,7 @@ impl<'a> Integrator<'a> {
                     Some((x, picked, bsdf_pdf)) if le != Vec3::ZERO => {
                         let prev = Previous {
                             x,
-                            ctx: picked.then(|| &contexts[(depth as usize + 1) % 2]),
+                            ctx: picked.then_some(if depth % 2 == 0 { &odd } else { &even }),
                             bsdf_pdf,
                         };
                         let y = LightPoint { p, n: ng };
@@ -218,7 +221,7 @@ impl<'a> Integrator<'a> {
                 &shading,
                 rng,
                 stats,
-                &mut contexts[depth as usize % 2],
+                if depth % 2 == 0 { &mut even } else { &mut odd },
             );
             let picked = direct.is_some_and(|d| d.context_filled);
             l += beta * direct.map_or(Vec3::ZERO, |d| d.l);

@@ -6,7 +6,7 @@ use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 
 use super::integrator::Integrator;
-use crate::light::antishadow::{Region, classify_brute_force};
+use crate::light::antishadow::Region;
 use crate::light::estimator::LightSampler;
 use crate::light::{Strategy, Technique};
 use crate::scene::Scene;
@@ -120,7 +120,7 @@ fn classify_ray(
     let x = Integrator::offset(p, if ng.dot(d) > 0.0 { -ng } else { ng });
     let classify = |portal: &crate::light::portal::Portal| {
         if brute_force {
-            classify_brute_force(&portal.polygon, &portal.light_polygon, x)
+            portal.classify_brute_force(x)
         } else {
             portal.planes.classify(x)
         }

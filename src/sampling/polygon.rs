@@ -467,6 +467,46 @@ pub fn merge_close_by<T: Copy>(vertices: &mut [T], close: impl Fn(T, T) -> bool)
     kept
 }
 
+/// The convex hull of `points`, which lie in a plane with normal `n`, counter-clockwise around
+/// `n` (Andrew's monotone chain, without allocation: it runs per shading point).
+pub fn convex_hull_in_plane(points: &[Vec3], n: Vec3) -> Verts {
+    let mut hull = Verts::new();
+    let Some(&origin) = points.first() else {
+        return hull;
+    };
+    let frame = super::Frame::from_normal(n);
+    let mut flat: ArrayVec<(Vec2, Vec3), MAX_CLIP_VERTICES> = ArrayVec::new();
+    for &p in points.iter().take(MAX_CLIP_VERTICES) {
+        let l = frame.to_local(p - origin);
+        flat.push((Vec2::new(l.x, l.y), p));
+    }
+    flat.sort_unstable_by(|a, b| a.0.x.total_cmp(&b.0.x).then(a.0.y.total_cmp(&b.0.y)));
+    let cross = |o: Vec2, a: Vec2, b: Vec2| (a - o).perp_dot(b - o);
+    // The chain holds at most n + 1 points before its last pop.
+    let mut chain: ArrayVec<(Vec2, Vec3), { MAX_CLIP_VERTICES + 1 }> = ArrayVec::new();
+    for pass in 0..2 {
+        let start = chain.len();
+        for k in 0..flat.len() {
+            let p = if pass == 0 {
+                flat[k]
+            } else {
+                flat[flat.len() - 1 - k]
+            };
+            while chain.len() >= start + 2
+                && cross(chain[chain.len() - 2].0, chain[chain.len() - 1].0, p.0) <= 0.0
+            {
+                chain.pop();
+            }
+            if chain.try_push(p).is_err() {
+                return Verts::new();
+            }
+        }
+        chain.pop();
+    }
+    hull.extend(chain.iter().map(|c| c.1));
+    hull
+}
+
 /// Andrew's monotone chain; counter-clockwise, without collinear points.
 fn convex_hull_2d(mut points: Vec<Vec2>) -> Vec<Vec2> {
     points.sort_by(|a, b| a.x.total_cmp(&b.x).then(a.y.total_cmp(&b.y)));

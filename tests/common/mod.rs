@@ -2,7 +2,7 @@
 #![allow(dead_code)]
 
 use glam::{Mat4, Vec3};
-use portalview::asset::desc::{MaterialDesc, PortalDesc, SceneDesc};
+use portalview::asset::desc::{MaterialDesc, MeshDesc, PortalDesc, SceneDesc};
 use portalview::camera::Camera;
 use portalview::light::Strategy;
 use portalview::material::Material;
@@ -285,4 +285,155 @@ pub fn floor_radiance(
         })
         .collect();
     mean_and_se(&values)
+}
+
+/// A UV sphere of radius `r` around `c` (`segments` around, `rings` from pole to pole), wound
+/// outwards: a bulb, as many triangles as a modelling tool gives it.
+pub fn uv_sphere(
+    node: &str,
+    material: usize,
+    c: Vec3,
+    r: f32,
+    (segments, rings): (u32, u32),
+) -> MeshDesc {
+    let mut positions = vec![c + r * Vec3::Y];
+    for i in 1..rings {
+        let theta = std::f32::consts::PI * i as f32 / rings as f32;
+        for k in 0..segments {
+            let phi = std::f32::consts::TAU * k as f32 / segments as f32;
+            positions.push(
+                c + r * Vec3::new(
+                    theta.sin() * phi.cos(),
+                    theta.cos(),
+                    theta.sin() * phi.sin(),
+                ),
+            );
+        }
+    }
+    positions.push(c - r * Vec3::Y);
+    let ring = |i: u32, k: u32| 1 + (i - 1) * segments + k % segments;
+    let bottom = positions.len() as u32 - 1;
+    let mut indices = vec![];
+    for k in 0..segments {
+        indices.push([0, ring(1, k + 1), ring(1, k)]);
+        for i in 1..rings - 1 {
+            indices.push([ring(i, k), ring(i, k + 1), ring(i + 1, k + 1)]);
+            indices.push([ring(i, k), ring(i + 1, k + 1), ring(i + 1, k)]);
+        }
+        indices.push([bottom, ring(rings - 1, k), ring(rings - 1, k + 1)]);
+    }
+    let normals = positions.iter().map(|&p| (p - c).normalize()).collect();
+    MeshDesc {
+        node_name: node.to_owned(),
+        material,
+        positions,
+        normals,
+        indices,
+    }
+}
+
+/// An open cylinder along x (a neon tube): radius `r`, from `c.x − half` to `c.x + half`,
+/// `segments` sides, wound outwards.
+pub fn tube(
+    node: &str,
+    material: usize,
+    c: Vec3,
+    (half, r): (f32, f32),
+    segments: u32,
+) -> MeshDesc {
+    let mut positions = vec![];
+    for k in 0..segments {
+        let phi = std::f32::consts::TAU * k as f32 / segments as f32;
+        let around = r * Vec3::new(0.0, phi.cos(), phi.sin());
+        positions.push(c + around - half * Vec3::X);
+        positions.push(c + around + half * Vec3::X);
+    }
+    let mut indices = vec![];
+    for k in 0..segments {
+        let (a, b) = (2 * k, 2 * ((k + 1) % segments));
+        indices.push([a, b, b + 1]);
+        indices.push([a, b + 1, a + 1]);
+    }
+    let normals = positions
+        .iter()
+        .map(|&p| Vec3::new(0.0, p.y - c.y, p.z - c.z).normalize())
+        .collect();
+    MeshDesc {
+        node_name: node.to_owned(),
+        material,
+        positions,
+        normals,
+        indices,
+    }
+}
+
+/// The solid walls of a box `lo..hi` (grey, double-sided) with `holes` in its bottom face,
+/// given as `(x0, x1, z0, z1)` offsets from `lo`.
+fn box_with_holes(desc: &mut SceneDesc, lo: Vec3, hi: Vec3, holes: &[(f32, f32, f32, f32)]) {
+    desc.materials
+        .push(MaterialDesc::diffuse("shade", Vec3::splat(0.3)));
+    let material = desc.materials.len() - 1;
+    let size = hi - lo;
+    let mut faces = plate(lo, (Vec3::X, size.x), (Vec3::Z, size.z), holes);
+    for (origin, u, v) in [
+        (lo, (Vec3::Y, size.y), (Vec3::Z, size.z)),
+        (
+            Vec3::new(hi.x, lo.y, lo.z),
+            (Vec3::Y, size.y),
+            (Vec3::Z, size.z),
+        ),
+        (lo, (Vec3::X, size.x), (Vec3::Y, size.y)),
+        (
+            Vec3::new(lo.x, lo.y, hi.z),
+            (Vec3::X, size.x),
+            (Vec3::Y, size.y),
+        ),
+        (
+            Vec3::new(lo.x, hi.y, lo.z),
+            (Vec3::X, size.x),
+            (Vec3::Z, size.z),
+        ),
+    ] {
+        faces.extend(plate(origin, u, v, &[]));
+    }
+    desc.meshes.push(flat("shade", material, &faces));
+}
+
+/// A floor and a bulb of 12 × 8 facets (86 vertices: more than the exact hull takes, so its
+/// solid is the bounding prism) in a closed box with its whole bottom open, a portal across the
+/// opening: below it, points see the whole bulb (antiumbra) or part of it (antipenumbra).
+pub fn bulb_in_shade() -> SceneDesc {
+    let mut desc = floor_and_light(0.6, square(Vec3::Y, Vec3::Y, 0.1), 20.0);
+    desc.meshes[1] = uv_sphere("bulb", 1, Vec3::new(0.0, 1.55, 0.0), 0.12, (12, 8));
+    let (lo, hi) = (Vec3::new(-0.3, 1.2, -0.3), Vec3::new(0.3, 1.8, 0.3));
+    box_with_holes(&mut desc, lo, hi, &[(0.0, 0.6, 0.0, 0.6)]);
+    let opening = [
+        Vec3::new(-0.3, 1.2, -0.3),
+        Vec3::new(0.3, 1.2, -0.3),
+        Vec3::new(0.3, 1.2, 0.3),
+        Vec3::new(-0.3, 1.2, 0.3),
+    ];
+    desc.portals.push(portal("opening", "bulb", 0.1, &opening));
+    desc.camera = camera(Vec3::new(0.0, 2.2, 2.4), Vec3::new(0.0, 0.4, 0.0));
+    desc
+}
+
+/// A floor and a neon tube of 8 sides (16 vertices: hulled exactly) in a box, over a slot in
+/// the box's bottom narrower and shorter than the tube, a portal in the slot: far below,
+/// every direction through the slot meets the tube (antiantumbra).
+pub fn tube_over_a_slot() -> SceneDesc {
+    let mut desc = floor_and_light(0.6, square(Vec3::Y, Vec3::Y, 0.1), 30.0);
+    desc.meshes[1] = tube("tube", 1, Vec3::new(0.0, 1.28, 0.0), (0.5, 0.05), 8);
+    let (lo, hi) = (Vec3::new(-0.6, 1.2, -0.3), Vec3::new(0.6, 1.45, 0.3));
+    let slot = (0.2, 1.0, 0.27, 0.33);
+    box_with_holes(&mut desc, lo, hi, &[slot]);
+    let corners = [
+        lo + Vec3::new(slot.0, 0.0, slot.2),
+        lo + Vec3::new(slot.1, 0.0, slot.2),
+        lo + Vec3::new(slot.1, 0.0, slot.3),
+        lo + Vec3::new(slot.0, 0.0, slot.3),
+    ];
+    desc.portals.push(portal("slot", "tube", 0.1, &corners));
+    desc.camera = camera(Vec3::new(0.0, 2.0, 2.0), Vec3::new(0.0, 0.3, 0.0));
+    desc
 }
