@@ -513,7 +513,8 @@ fn srgb_byte(linear: f32) -> u8 {
     (s * 255.0).round() as u8
 }
 
-/// A UV sphere of `segments` × `rings` quads (triangles at the poles), smooth normals pointing out.
+/// A UV sphere: `segments` around, `rings` from pole to pole (one vertex at each pole, so
+/// `segments · (rings − 1) + 2` vertices), smooth normals pointing out.
 fn uv_sphere(
     node: &str,
     material: usize,
@@ -527,31 +528,37 @@ fn uv_sphere(
         material,
         ..MeshDesc::default()
     };
-    let pi = std::f32::consts::PI;
-    for r in 0..=rings {
-        let theta = pi * r as f32 / rings as f32;
+    let mut vertex = |d: Vec3| {
+        mesh.positions.push(center + radius * d);
+        mesh.normals.push(d);
+    };
+    vertex(Vec3::Y);
+    for r in 1..rings {
+        let theta = std::f32::consts::PI * r as f32 / rings as f32;
         for s in 0..segments {
             let phi = std::f32::consts::TAU * s as f32 / segments as f32;
-            let d = Vec3::new(
+            vertex(Vec3::new(
                 theta.sin() * phi.cos(),
                 theta.cos(),
                 theta.sin() * phi.sin(),
-            );
-            mesh.positions.push(center + radius * d);
-            mesh.normals.push(d);
+            ));
         }
     }
-    let at = |r: u32, s: u32| r * segments + s % segments;
-    for r in 0..rings {
+    vertex(Vec3::NEG_Y);
+    let south = segments * (rings - 1) + 1;
+    // Ring r (1 ..= rings − 1), segment s.
+    let at = |r: u32, s: u32| 1 + (r - 1) * segments + s % segments;
+    // Counter-clockwise seen from outside (y up, φ turning from +x towards +z).
+    for s in 0..segments {
+        mesh.indices.push([0, at(1, s + 1), at(1, s)]);
+        mesh.indices
+            .push([south, at(rings - 1, s), at(rings - 1, s + 1)]);
+    }
+    for r in 1..rings - 1 {
         for s in 0..segments {
-            // Counter-clockwise seen from outside (y up, φ turning from +x to +z).
             let (a, b, c, d) = (at(r, s), at(r, s + 1), at(r + 1, s + 1), at(r + 1, s));
-            if r > 0 {
-                mesh.indices.push([a, b, d]);
-            }
-            if r + 1 < rings {
-                mesh.indices.push([b, c, d]);
-            }
+            mesh.indices.push([a, b, c]);
+            mesh.indices.push([a, c, d]);
         }
     }
     mesh
@@ -635,7 +642,7 @@ fn desklamp() -> SceneDesc {
         textures: MaterialTextures {
             normal: plaster.map(|texture| NormalTexture {
                 texture,
-                scale: 1.0,
+                scale: 0.6,
             }),
             ..MaterialTextures::default()
         },
@@ -666,12 +673,12 @@ fn desklamp() -> SceneDesc {
     let fabric = b.material(matte("shade_fabric", Vec3::new(0.9, 0.85, 0.7)));
     let bulb = b.material(MaterialDesc::emitter(
         "bulb_glow",
-        Vec3::new(200.0, 170.0, 120.0),
+        Vec3::new(400.0, 340.0, 240.0),
         false,
     ));
 
     // The room corner: a floor, a back wall (z = −1.6) and a left wall (x = −2), open elsewhere.
-    let (w, h, back, left) = (2.5, 2.6, -1.6, -2.0);
+    let (w, h, back, left) = (2.5, 3.0, -1.6, -2.0);
     b.flat("floor", floor, &[rect_y(0.0, 0.0, w, w, 0.0, true)]);
     b.flat(
         "back_wall",
@@ -741,7 +748,7 @@ fn desklamp() -> SceneDesc {
         Vec3::new(lx - 0.01, ty + 0.025, lz - 0.01),
         Vec3::new(lx + 0.01, y_bulb - 0.045, lz + 0.01),
     );
-    let (r_bottom, r_top, sides) = (0.2, 0.09, 16);
+    let (r_bottom, r_top, sides) = (0.2, 0.09, 12);
     let ring = |r: f32, y: f32| -> Vec<Vec3> {
         (0..sides)
             .map(|i| {
@@ -763,8 +770,10 @@ fn desklamp() -> SceneDesc {
         bulb,
         Vec3::new(lx, y_bulb, lz),
         0.045,
-        16,
-        8,
+        // 23 vertices: few enough (at most 24) for the portals to bound it by its exact
+        // convex hull rather than a looser prism.
+        7,
+        4,
     ));
     b.portal("portal_bottom", "bulb", &bottom);
     b.portal("portal_top", "bulb", &top);
@@ -780,18 +789,22 @@ fn desklamp() -> SceneDesc {
         direction: Vec3::NEG_Z,
     });
 
-    // Texture coordinates: planks every 1.6 m, the desk grain every 1 m, plaster every 1.5 m,
+    // Texture coordinates: planks every 1.6 m, the desk grain every 1 m, plaster every 0.6 m,
     // the checkerboard across each face of the block.
     for mesh in &mut b.desc.meshes {
         let per_metre = match mesh.node_name.as_str() {
             "floor" => 1.0 / 1.6,
-            "back_wall" => 1.0 / 1.5,
+            "back_wall" => 1.0 / 0.6,
             "block" => 1.0 / 0.3,
             name if name.starts_with("desk") => 1.0,
             _ => continue,
         };
         mesh.texcoords[0] = projected_uvs(mesh, per_metre);
     }
-    b.camera(Vec3::new(1.3, 1.45, 1.5), Vec3::new(-0.55, 0.9, -1.1), 50.0);
+    b.camera(
+        Vec3::new(0.7, 1.35, 0.55),
+        Vec3::new(-0.5, 0.95, -1.1),
+        50.0,
+    );
     b.desc
 }
