@@ -670,10 +670,10 @@ fn desklamp() -> SceneDesc {
         roughness: 0.25,
         ..MaterialDesc::diffuse("lamp_metal", Vec3::new(0.15, 0.35, 0.3))
     });
-    let fabric = b.material(matte("shade_fabric", Vec3::new(0.9, 0.85, 0.7)));
+    let fabric = b.material(matte("shade_fabric", Vec3::new(0.7, 0.62, 0.5)));
     let bulb = b.material(MaterialDesc::emitter(
         "bulb_glow",
-        Vec3::new(400.0, 340.0, 240.0),
+        Vec3::new(250.0, 212.0, 150.0),
         false,
     ));
 
@@ -746,7 +746,7 @@ fn desklamp() -> SceneDesc {
         "lamp_stem",
         metal,
         Vec3::new(lx - 0.01, ty + 0.025, lz - 0.01),
-        Vec3::new(lx + 0.01, y_bulb - 0.045, lz + 0.01),
+        Vec3::new(lx + 0.01, y_bulb - 0.05, lz + 0.01),
     );
     let (r_bottom, r_top, sides) = (0.2, 0.09, 12);
     let ring = |r: f32, y: f32| -> Vec<Vec3> {
@@ -769,7 +769,7 @@ fn desklamp() -> SceneDesc {
         "bulb",
         bulb,
         Vec3::new(lx, y_bulb, lz),
-        0.045,
+        0.05,
         // 23 vertices: few enough (at most 24) for the portals to bound it by its exact
         // convex hull rather than a looser prism.
         7,
@@ -778,12 +778,12 @@ fn desklamp() -> SceneDesc {
     b.portal("portal_bottom", "bulb", &bottom);
     b.portal("portal_top", "bulb", &top);
 
-    // A ceiling lamp: Blender's 60 W point lamp, written as 60 · 683 / (4π) cd.
+    // A ceiling lamp: Blender's 100 W point lamp, written as 100 · 683 / (4π) cd.
     b.desc.lamps.push(LampDesc {
         name: "ceiling_lamp".to_owned(),
         kind: LampKind::Point,
         color: Vec3::new(1.0, 0.95, 0.9),
-        intensity: 60.0 * 683.0 / (4.0 * std::f32::consts::PI),
+        intensity: 100.0 * 683.0 / (4.0 * std::f32::consts::PI),
         range: None,
         position: Vec3::new(0.6, 2.4, 0.4),
         direction: Vec3::NEG_Z,
