@@ -3,6 +3,7 @@
 
 use glam::Vec3;
 use portalview::asset::desc::{MaterialTextures, SceneDesc};
+use portalview::asset::environment::EnvMap;
 use portalview::asset::texture::TextureRef;
 use portalview::asset::{builtin, gltf};
 use portalview::scene::Scene;
@@ -150,6 +151,27 @@ fn assert_same(name: &str, file: &SceneDesc, code: &SceneDesc) {
             a.name
         );
     }
+    match (&file.environment, &code.environment) {
+        (None, None) => {}
+        (Some(a), Some(b)) => {
+            assert_eq!(
+                (a.strength, a.rotation_degrees),
+                (b.strength, b.rotation_degrees)
+            );
+            match (&a.map, &b.map) {
+                (EnvMap::Constant(x), EnvMap::Constant(y)) => assert!(close(*x, *y)),
+                (EnvMap::Image { image: x, .. }, EnvMap::Image { image: y, .. }) => {
+                    assert_eq!((x.width, x.height), (y.width, y.height), "{name}");
+                    // Written as Radiance RGBE: 8-bit mantissas.
+                    assert!(x.pixels.iter().zip(&y.pixels).all(|(p, q)| {
+                        (*p - *q).abs().max_element() <= 0.01 * q.max_element() + 1e-6
+                    }));
+                }
+                _ => panic!("{name}: environment kinds differ"),
+            }
+        }
+        _ => panic!("{name}: environment present in only one"),
+    }
     let (ca, cb) = (file.camera.unwrap(), code.camera.unwrap());
     assert!(
         close(ca.eye, cb.eye) && close(ca.target, cb.target),
@@ -168,7 +190,10 @@ fn committed_assets_equal_the_builtin_scenes() {
         assert!(file.warnings.is_empty(), "{name}: {:?}", file.warnings);
         // And the loaded file is a valid scene with its portals.
         let scene = Scene::load(&path).unwrap();
-        assert_eq!(scene.portals.len(), file.portals.len());
+        assert_eq!(
+            scene.portals.len() + scene.windows.len(),
+            file.portals.len()
+        );
     }
 }
 

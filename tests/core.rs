@@ -336,6 +336,7 @@ fn furnace(albedo: f32) -> (f64, f64) {
         warnings: Vec::new(),
         images: Vec::new(),
         camera: camera(Vec3::new(0.0, 0.0, 4.0), Vec3::ZERO),
+        environment: None,
     };
     let scene = Scene::from_desc(desc, "furnace").unwrap();
     let ball = &scene.geometry.materials[0];

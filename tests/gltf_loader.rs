@@ -299,6 +299,7 @@ fn sample_scene() -> SceneDesc {
             yfov: 0.7,
             aspect: 1.5,
         }),
+        environment: None,
         warnings: Vec::new(),
         images: Vec::new(),
     }

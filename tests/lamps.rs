@@ -53,6 +53,7 @@ fn floor_only() -> SceneDesc {
         warnings: Vec::new(),
         images: Vec::new(),
         camera: camera(Vec3::new(0.0, 3.0, 3.0), Vec3::ZERO),
+        environment: None,
     }
 }
 

@@ -3,6 +3,8 @@
 use glam::{Mat4, Quat, Vec3};
 
 use crate::asset::desc::PortalDesc;
+use crate::asset::environment::ENVIRONMENT_TARGET;
+use crate::camera::Camera;
 use crate::sampling::polygon::ConvexPolygon;
 use crate::scene::Scene;
 
@@ -155,6 +157,47 @@ impl PortalEditor {
         self.selected
     }
 
+    /// Adds a window portal onto the environment: a 1 m square at the camera's target, its
+    /// front facing the camera (the room's side), and selects it.
+    pub fn add_window(&mut self, camera: &Camera) -> Option<usize> {
+        let n = (camera.eye - camera.target).try_normalize()?;
+        let tangent = n
+            .cross(camera.up)
+            .try_normalize()
+            .unwrap_or(n.any_orthonormal_vector());
+        let bitangent = n.cross(tangent);
+        let c = camera.target;
+        let h = 0.5;
+        // Counter-clockwise around n: the front faces the camera.
+        let corners: Vec<Vec3> = [(-h, -h), (h, -h), (h, h), (-h, h)]
+            .into_iter()
+            .map(|(a, b)| c + a * tangent + b * bitangent)
+            .collect();
+        let taken = |name: &str| self.portals.iter().any(|p| p.name == name);
+        let name = (1..)
+            .map(|k| format!("window_{k}"))
+            .find(|n| !taken(n))
+            .unwrap_or_default();
+        self.checkpoint();
+        self.portals.push(PortalDesc::from_polygon(
+            name,
+            ENVIRONMENT_TARGET.to_owned(),
+            &corners,
+        ));
+        self.selected = Some(self.portals.len() - 1);
+        self.selected
+    }
+
+    /// Turns portal `i`'s front over (what decides a window's side).
+    pub fn flip(&mut self, i: usize) -> bool {
+        let Some(flipped) = self.portals.get(i).map(PortalDesc::flipped) else {
+            return false;
+        };
+        self.checkpoint();
+        self.portals[i] = flipped;
+        true
+    }
+
     pub fn delete(&mut self, i: usize) {
         if i < self.portals.len() {
             self.checkpoint();
@@ -193,6 +236,27 @@ mod tests {
         assert_eq!(editor.portals, before);
         assert!(editor.redo());
         assert_ne!(editor.portals, before);
+    }
+
+    #[test]
+    fn added_window_faces_the_camera_and_flips() {
+        let scene = Scene::open("window").unwrap();
+        let mut editor = PortalEditor::new(&scene);
+        let camera = scene.camera;
+        let i = editor.add_window(&camera).unwrap();
+        let (rendered, errors) = scene.with_portals_lenient(editor.portals.clone());
+        assert!(errors.is_empty(), "{errors:?}");
+        let window = rendered.windows.iter().find(|w| w.desc_index == i).unwrap();
+        assert!(window.in_front(camera.eye));
+        assert!(editor.flip(i));
+        let (rendered, _) = scene.with_portals_lenient(editor.portals.clone());
+        let window = rendered.windows.iter().find(|w| w.desc_index == i).unwrap();
+        assert!(!window.in_front(camera.eye));
+        assert!(editor.undo());
+        assert_eq!(
+            editor.portals[i].local_triangles,
+            editor.portals[i].flipped().flipped().local_triangles
+        );
     }
 
     #[test]

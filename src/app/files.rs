@@ -15,6 +15,8 @@ pub enum Purpose {
     SaveGlb,
     /// A reference `.exr` for the comparison.
     ReferenceExr,
+    /// An equirectangular `.hdr`/`.exr` environment.
+    Environment,
 }
 
 impl Purpose {
@@ -23,6 +25,7 @@ impl Purpose {
             Purpose::OpenScene => &["gltf", "glb"],
             Purpose::SaveGlb => &["glb"],
             Purpose::ReferenceExr => &["exr"],
+            Purpose::Environment => &["hdr", "exr"],
         }
     }
 
@@ -31,6 +34,7 @@ impl Purpose {
             Purpose::OpenScene => "Open glTF scene (.gltf, .glb)",
             Purpose::SaveGlb => "Save as .glb",
             Purpose::ReferenceExr => "Load reference EXR",
+            Purpose::Environment => "Open environment (.hdr, .exr)",
         }
     }
 }
@@ -54,7 +58,9 @@ impl FilePicker {
         let extensions = purpose.extensions();
         let mut dialog = match purpose {
             Purpose::SaveGlb => FileDialog::save_file(),
-            Purpose::OpenScene | Purpose::ReferenceExr => FileDialog::open_file(),
+            Purpose::OpenScene | Purpose::ReferenceExr | Purpose::Environment => {
+                FileDialog::open_file()
+            }
         }
         .id(egui::Id::unique(("file dialog", purpose)))
         .title(purpose.title())

@@ -6,6 +6,7 @@ use std::path::PathBuf;
 use std::sync::mpsc::{Receiver, TryRecvError};
 
 use crate::asset::desc::{PortalDesc, SceneDesc};
+use crate::asset::environment::{EnvMap, load_image};
 use crate::asset::gltf;
 use crate::scene::Scene;
 
@@ -20,6 +21,8 @@ pub(super) enum Done {
         scene: Scene,
         portals: Vec<PortalDesc>,
     },
+    /// An environment image read from a file.
+    Environment(EnvMap),
 }
 
 /// Where and what to save.
@@ -49,6 +52,18 @@ impl Job {
         })
     }
 
+    /// Reads an environment image.
+    pub fn load_environment(path: std::path::PathBuf, ctx: &egui::Context) -> Job {
+        let what = format!("reading {}", path.display());
+        Job::spawn(what, ctx, move || {
+            let image = load_image(&path).map_err(|e| e.to_string())?;
+            Ok(Done::Environment(EnvMap::Image {
+                file: Some(path),
+                image: std::sync::Arc::new(image),
+            }))
+        })
+    }
+
     /// Writes the portals, then reads the file back.
     pub fn save(request: SaveRequest, ctx: &egui::Context) -> Job {
         let what = format!("saving {}", request.target.display());
@@ -59,7 +74,15 @@ impl Job {
                 desc,
             } = request;
             let written = if into_source {
-                gltf::save_portals(&target, &desc.portals)
+                gltf::save_portals(&target, &desc.portals).and_then(|()| {
+                    // The environment's keys change only when it was changed.
+                    let on_file = gltf::load_gltf(&target)?.environment;
+                    if on_file == desc.environment {
+                        Ok(())
+                    } else {
+                        gltf::save_environment(&target, desc.environment.as_ref())
+                    }
+                })
             } else {
                 gltf::export_glb(&desc, &target)
             };

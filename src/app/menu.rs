@@ -142,6 +142,7 @@ impl PortalViewApp {
             Purpose::SaveGlb => commands.push(Command::SaveAs(path)),
             // The comparison keeps its own dialog.
             Purpose::ReferenceExr => {}
+            Purpose::Environment => self.open_environment(path),
         }
     }
 }

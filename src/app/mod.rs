@@ -8,6 +8,7 @@
 
 pub mod compare_view;
 pub mod edit;
+mod environment_panel;
 mod files;
 mod frame_view;
 mod gizmo;
@@ -33,6 +34,7 @@ use crate::sampling::SamplerKind;
 use crate::scene::Scene;
 use compare_view::CompareView;
 use edit::PortalEditor;
+use environment_panel::EnvironmentEdit;
 use files::{FilePicker, Purpose};
 use frame_view::FrameView;
 use loader::{Done, Job, SaveRequest};
@@ -58,6 +60,12 @@ enum Command {
     /// Save the scene and its portals as a new `.glb`.
     SaveAs(PathBuf),
     AddPortal(usize),
+    /// Add a window portal onto the environment, facing the camera.
+    AddWindow,
+    /// Turn a window portal's front over.
+    FlipPortal(usize),
+    /// Change the environment.
+    Environment(EnvironmentEdit),
     DeletePortal(usize),
     /// A portal's fields changed (the editor holds the new value).
     PortalEdited,
@@ -85,9 +93,18 @@ impl Current {
         }
     }
 
-    /// The index among the rendered portals of the editor's portal `i` (if it is valid).
+    /// The index among the rendered portals, then windows (as the overlay counts them), of
+    /// the editor's portal `i` (if it is valid).
     fn rendered_index(&self, i: usize) -> Option<usize> {
-        self.rendered.portals.iter().position(|p| p.desc_index == i)
+        let portals = &self.rendered.portals;
+        portals.iter().position(|p| p.desc_index == i).or_else(|| {
+            let w = self
+                .rendered
+                .windows
+                .iter()
+                .position(|w| w.desc_index == i)?;
+            Some(portals.len() + w)
+        })
     }
 }
 
@@ -101,6 +118,8 @@ pub struct PortalViewApp {
     view: FrameView,
     /// Which portal the region overlay shows (`None`: all).
     overlay_portal: Option<usize>,
+    /// The environment was changed since loading or saving.
+    environment_dirty: bool,
     /// Render size last requested, in pixels.
     requested_size: (u32, u32),
     paused: bool,
@@ -150,6 +169,7 @@ impl PortalViewApp {
             renderer,
             view: FrameView::default(),
             overlay_portal: None,
+            environment_dirty: false,
             requested_size: (0, 0),
             paused: false,
             message: None,
@@ -291,6 +311,7 @@ impl PortalViewApp {
             }
         };
         let into_source = current.scene.source.as_deref() == Some(target.as_path());
+        self.environment_dirty = false;
         let mut desc = (*current.scene.desc).clone();
         desc.portals = self.editor.portals.clone();
         desc.camera = Some(current.camera);
@@ -326,6 +347,16 @@ impl PortalViewApp {
                 scene,
                 portals,
             }) => self.saved(path, scene, portals),
+            Ok(Done::Environment(map)) => {
+                let kept = self.scene().and_then(|s| s.desc.environment.clone());
+                let environment = crate::asset::environment::EnvironmentDesc {
+                    map,
+                    ..kept.unwrap_or(crate::asset::environment::EnvironmentDesc::constant(
+                        glam::Vec3::ONE,
+                    ))
+                };
+                self.apply_environment(EnvironmentEdit::Set(Some(environment)));
+            }
             Err(e) => {
                 self.message = Some(e);
                 if self.current.is_none() && self.settings.scene != DEFAULT_SCENE {
@@ -345,6 +376,7 @@ impl PortalViewApp {
         self.editor = PortalEditor::new(&scene);
         self.current = Some(Current::new(scene));
         self.overlay_portal = None;
+        self.environment_dirty = false;
     }
 
     /// After saving: the file read back replaces the scene (so that new portals know their
@@ -466,6 +498,13 @@ impl PortalViewApp {
                         edited |= self.editor.add_for_light(&current.scene, light).is_some();
                     }
                 }
+                Command::AddWindow => {
+                    if let Some(current) = &self.current {
+                        edited |= self.editor.add_window(&current.camera).is_some();
+                    }
+                }
+                Command::FlipPortal(i) => edited |= self.editor.flip(i),
+                Command::Environment(edit) => self.apply_environment(edit),
                 Command::DeletePortal(i) => {
                     self.editor.delete(i);
                     edited = true;

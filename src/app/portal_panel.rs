@@ -20,10 +20,11 @@ impl PortalViewApp {
         };
         for (i, portal) in editor.portals.iter().enumerate() {
             let broken = current.portal_errors.iter().any(|(e, _)| *e == i);
+            let kind = if portal.is_window() { " (window)" } else { "" };
             let label = if broken {
-                format!("(!) {}", portal.name)
+                format!("(!) {}{kind}", portal.name)
             } else {
-                portal.name.clone()
+                format!("{}{kind}", portal.name)
             };
             if ui
                 .selectable_label(editor.selected == Some(i), label)
@@ -39,7 +40,14 @@ impl PortalViewApp {
                 format!("portal {i}: {message}"),
             );
         }
-        ui.horizontal(|ui| {
+        ui.horizontal_wrapped(|ui| {
+            if ui
+                .button("Add window portal")
+                .on_hover_text("A window onto the environment at the camera's target, facing the camera; move it into the opening")
+                .clicked()
+            {
+                commands.push(Command::AddWindow);
+            }
             for (i, light) in current.scene.geometry.lights.iter().enumerate() {
                 if ui
                     .button(format!("Add portal for {}", light.name))
@@ -122,9 +130,21 @@ impl PortalViewApp {
             editor.portals[i].alpha = alpha;
             commands.push(Command::PortalEdited);
         }
-        if ui.button("Delete portal").clicked() {
-            commands.push(Command::DeletePortal(i));
-        }
+        ui.horizontal(|ui| {
+            if editor.portals[i].is_window()
+                && ui
+                    .button("Flip")
+                    .on_hover_text(
+                        "Turn the window's front (the arrow: the side the sky light enters) over",
+                    )
+                    .clicked()
+            {
+                commands.push(Command::FlipPortal(i));
+            }
+            if ui.button("Delete portal").clicked() {
+                commands.push(Command::DeletePortal(i));
+            }
+        });
         if editor.dirty {
             ui.label(if current.scene.source.is_some() {
                 "unsaved changes (File > Save portals)"

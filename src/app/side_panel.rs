@@ -27,6 +27,9 @@ impl PortalViewApp {
                     egui::CollapsingHeader::new("Portals")
                         .default_open(true)
                         .show(ui, |ui| self.portal_panel(ui, commands));
+                    egui::CollapsingHeader::new("Environment")
+                        .default_open(true)
+                        .show(ui, |ui| self.environment_panel(ui, commands));
                     egui::CollapsingHeader::new("Statistics")
                         .default_open(false)
                         .show(ui, |ui| self.statistics(ui));
@@ -125,10 +128,10 @@ impl PortalViewApp {
         let portals = self
             .current
             .as_ref()
-            .map_or(&[][..], |c| &c.rendered.portals);
+            .map_or(Vec::new(), |c| c.rendered.overlay_portal_names());
         let portal_name = |i: Option<usize>| match i {
             None => "all portals".to_owned(),
-            Some(i) => portals.get(i).map_or("?".into(), |p| p.name.clone()),
+            Some(i) => portals.get(i).cloned().unwrap_or_else(|| "?".into()),
         };
         egui::ComboBox::from_label("regions of")
             .selected_text(portal_name(self.overlay_portal))
@@ -162,7 +165,10 @@ impl PortalViewApp {
                     region.name(),
                     technique.map_or("light alone", Technique::name)
                 ));
-                ui.label(shares.map_or("–".into(), |s| format!("{:.1}%", 100.0 * s[k])));
+                // Fixed width ("100.0%" as wide as " 99.9%"): a share that reaches 100%
+                // must not widen the panel, which would resize the image and restart it.
+                let share = shares.map_or("   –  ".into(), |s| format!("{:>5.1}%", 100.0 * s[k]));
+                ui.label(egui::RichText::new(share).monospace());
                 ui.end_row();
             }
         });

@@ -60,6 +60,9 @@ impl Current {
         if let Some(p) = self.rendered.portals.iter().find(|p| p.desc_index == i) {
             return Some(p.polygon.clone());
         }
+        if let Some(w) = self.rendered.windows.iter().find(|w| w.desc_index == i) {
+            return Some(w.polygon.clone());
+        }
         ConvexPolygon::from_triangles(&editor.portals.get(i)?.world_triangles()).ok()
     }
 
@@ -102,6 +105,14 @@ impl Current {
             for (a, b) in p.edges() {
                 if let Some(s) = projector.segment(a, b) {
                     painter.line_segment(s, Stroke::new(2.0, colour));
+                }
+            }
+            // A window's front (where the sky light enters the room): its normal, drawn.
+            if editor.portals[i].is_window() {
+                let c = p.centroid();
+                let tip = c + p.normal() * (0.35 * p.area().sqrt());
+                if let (Some(a), Some(b)) = (projector.point(c), projector.point(tip)) {
+                    painter.arrow(a, b - a, Stroke::new(2.0, colour));
                 }
             }
         }
@@ -304,9 +315,9 @@ fn inspector(ui: &Ui, view: &FrameView, current: &Current, rect: Rect, pos: Pos2
         match primary.points.get(i).copied().flatten() {
             Some(p) => {
                 text += &format!("\nhit {:.3} {:.3} {:.3}", p.x, p.y, p.z);
-                for (j, portal) in current.rendered.portals.iter().enumerate() {
+                for (j, name) in current.rendered.overlay_portal_names().iter().enumerate() {
                     if let Some(r) = primary.region(i, Some(j)) {
-                        text += &format!("\n{}: {}", portal.name, r.name());
+                        text += &format!("\n{name}: {}", r.name());
                     }
                 }
                 let technique = primary.technique[i];

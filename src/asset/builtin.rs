@@ -1,7 +1,7 @@
 //! Built-in scenes, made in code so that the viewer and the tests need no files:
-//! `lampshade` (the thesis's Figure 1), `fig8a`, `fig8b`, `fig8c` (its Figure 8) and `desklamp`
-//! (an artist's scene as Blender exports it: textures, a normal map, a point lamp and a bulb
-//! mesh behind portals).
+//! `lampshade` (the thesis's Figure 1), `fig8a`, `fig8b`, `fig8c` (its Figure 8), `window`,
+//! `windows2` (a room lit by the sky through window portals), and `desklamp` (an artist's scene
+//! as Blender exports it: textures, a normal map, a point lamp and a bulb mesh behind portals).
 
 use glam::{Vec2, Vec3};
 use std::collections::HashMap;
@@ -11,11 +11,20 @@ use crate::asset::desc::{
     LampDesc, LampKind, MaterialDesc, MaterialTextures, MeshDesc, NormalTexture, PortalDesc,
     SceneDesc,
 };
+use crate::asset::environment::{ENVIRONMENT_TARGET, EnvImage, EnvMap, EnvironmentDesc};
 use crate::asset::texture::{Image, Sampler, TextureRef};
 use crate::camera::Camera;
 
 /// Names of the built-in scenes.
-pub const NAMES: [&str; 5] = ["lampshade", "fig8a", "fig8b", "fig8c", "desklamp"];
+pub const NAMES: [&str; 7] = [
+    "lampshade",
+    "fig8a",
+    "fig8b",
+    "fig8c",
+    "window",
+    "windows2",
+    "desklamp",
+];
 
 /// The built-in scene `name`, if there is one.
 pub fn desc(name: &str) -> Option<SceneDesc> {
@@ -24,6 +33,8 @@ pub fn desc(name: &str) -> Option<SceneDesc> {
         "fig8a" => Some(figure8(Figure8::A)),
         "fig8b" => Some(figure8(Figure8::B)),
         "fig8c" => Some(figure8(Figure8::C)),
+        "window" => Some(room_with_windows("window", false)),
+        "windows2" => Some(room_with_windows("windows2", true)),
         "desklamp" => Some(desklamp()),
         _ => None,
     }
@@ -471,6 +482,218 @@ fn lampshade() -> SceneDesc {
     b.portal("portal_top", "bulb", &top);
     b.portal("portal_bottom", "bulb", &bottom);
     b.camera(Vec3::new(1.7, 1.55, 1.4), Vec3::new(0.0, 1.05, -1.0), 50.0);
+    b.desc
+}
+
+/// The direction towards the built-in sky's sun: 29° above the horizon, towards −Z and a
+/// little +X, so that it shines through the north window onto the floor.
+pub fn sky_sun_direction() -> Vec3 {
+    Vec3::new(0.25, 0.55, -1.0).normalize()
+}
+
+/// The sun's angular radius (radians) and radiance in the built-in sky.
+pub const SKY_SUN_RADIUS: f32 = 0.045;
+pub const SKY_SUN_RADIANCE: Vec3 = Vec3::new(1500.0, 1400.0, 1200.0);
+
+/// The built-in sky: a blue gradient over a dim ground, with a sun-like hot spot, as a
+/// 512 × 256 equirectangular image (Blender's mapping, rotation 0).
+pub fn sky_image() -> EnvImage {
+    let (width, height) = (512u32, 256u32);
+    let sun = sky_sun_direction();
+    let sun_cos = SKY_SUN_RADIUS.cos();
+    let mut pixels = Vec::with_capacity((width * height) as usize);
+    for j in 0..height {
+        for i in 0..width {
+            let theta = std::f32::consts::PI * (j as f32 + 0.5) / height as f32;
+            let phi = std::f32::consts::TAU * ((i as f32 + 0.5) / width as f32 - 0.5);
+            let d = Vec3::new(
+                theta.sin() * phi.cos(),
+                theta.cos(),
+                theta.sin() * phi.sin(),
+            );
+            let radiance = if d.dot(sun) >= sun_cos {
+                SKY_SUN_RADIANCE
+            } else if d.y >= 0.0 {
+                let horizon = Vec3::new(1.1, 1.05, 0.95);
+                let zenith = Vec3::new(0.3, 0.5, 1.0);
+                horizon.lerp(zenith, d.y.sqrt())
+                    + Vec3::new(0.6, 0.5, 0.35) * d.dot(sun).max(0.0).powi(8)
+            } else {
+                Vec3::new(0.22, 0.19, 0.15)
+            };
+            pixels.push(radiance);
+        }
+    }
+    EnvImage {
+        width,
+        height,
+        pixels,
+    }
+}
+
+/// Corners of a wall polygon given in the wall's own `(u, v)` coordinates, wound so that its
+/// front faces `inward`.
+fn facing(corners: Vec<Vec3>, inward: Vec3) -> Vec<Vec3> {
+    let n = (corners[1] - corners[0]).cross(corners[2] - corners[0]);
+    if n.dot(inward) >= 0.0 {
+        corners
+    } else {
+        corners.into_iter().rev().collect()
+    }
+}
+
+/// The rectangle `[u0, u1] × [v0, v1]` less the convex `hole` (counter-clockwise, strictly
+/// inside), as convex pieces in `(u, v)`: full-width bands above and below the hole, and
+/// between consecutive vertex heights one trapezoid on either side of it.
+fn rectangle_less_hole(u: [f32; 2], v: [f32; 2], hole: &[Vec2]) -> Vec<Vec<Vec2>> {
+    let (lo, hi) = hole
+        .iter()
+        .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), p| {
+            (lo.min(p.y), hi.max(p.y))
+        });
+    // The hole's extent along u at height y (a convex polygon's cross-section).
+    let span = |y: f32| {
+        let mut left = f32::INFINITY;
+        let mut right = f32::NEG_INFINITY;
+        for k in 0..hole.len() {
+            let (a, b) = (hole[k], hole[(k + 1) % hole.len()]);
+            if (a.y - y) * (b.y - y) <= 0.0 && a.y != b.y {
+                let x = a.x + (b.x - a.x) * (y - a.y) / (b.y - a.y);
+                left = left.min(x);
+                right = right.max(x);
+            } else if a.y == y {
+                left = left.min(a.x);
+                right = right.max(a.x);
+            }
+        }
+        (left, right)
+    };
+    let mut levels: Vec<f32> = hole.iter().map(|p| p.y).collect();
+    levels.sort_by(f32::total_cmp);
+    levels.dedup();
+    let mut pieces = vec![
+        vec![
+            Vec2::new(u[0], v[0]),
+            Vec2::new(u[1], v[0]),
+            Vec2::new(u[1], lo),
+            Vec2::new(u[0], lo),
+        ],
+        vec![
+            Vec2::new(u[0], hi),
+            Vec2::new(u[1], hi),
+            Vec2::new(u[1], v[1]),
+            Vec2::new(u[0], v[1]),
+        ],
+    ];
+    for w in levels.windows(2) {
+        let (ya, yb) = (w[0], w[1]);
+        let ((la, ra), (lb, rb)) = (span(ya), span(yb));
+        pieces.push(vec![
+            Vec2::new(u[0], ya),
+            Vec2::new(la, ya),
+            Vec2::new(lb, yb),
+            Vec2::new(u[0], yb),
+        ]);
+        pieces.push(vec![
+            Vec2::new(ra, ya),
+            Vec2::new(u[1], ya),
+            Vec2::new(u[1], yb),
+            Vec2::new(rb, yb),
+        ]);
+    }
+    pieces
+}
+
+/// A closed room, 4 × 2.6 × 4 m, lit by the built-in sky through a window in its north wall
+/// (−Z); with `two`, a smaller north window and a hexagonal one in the east wall (+X). Each
+/// window's portal fills its opening, facing into the room.
+fn room_with_windows(name: &str, two: bool) -> SceneDesc {
+    let mut b = Builder::new(name);
+    let floor = b.material(MaterialDesc::diffuse("floor", Vec3::new(0.55, 0.45, 0.35)));
+    let wall = b.material(MaterialDesc::diffuse("wall", Vec3::splat(0.75)));
+    let object = b.material(MaterialDesc {
+        roughness: 0.5,
+        ..MaterialDesc::diffuse("object", Vec3::new(0.8, 0.55, 0.3))
+    });
+    let (w, h) = (2.0, 2.6);
+    // The north wall at z = −w: u along +x, v up; the east wall at x = +w: u along +z.
+    let north = |p: Vec2| Vec3::new(p.x, p.y, -w);
+    let east = |p: Vec2| Vec3::new(w, p.y, p.x);
+    let north_window: Vec<Vec2> = if two {
+        vec![
+            Vec2::new(-0.9, 0.9),
+            Vec2::new(-0.1, 0.9),
+            Vec2::new(-0.1, 2.0),
+            Vec2::new(-0.9, 2.0),
+        ]
+    } else {
+        vec![
+            Vec2::new(-0.8, 0.8),
+            Vec2::new(0.8, 0.8),
+            Vec2::new(0.8, 2.1),
+            Vec2::new(-0.8, 2.1),
+        ]
+    };
+    let hexagon: Vec<Vec2> = (0..6)
+        .map(|k| {
+            let a = std::f32::consts::TAU * k as f32 / 6.0;
+            Vec2::new(0.2, 1.45) + 0.55 * Vec2::new(a.cos(), a.sin())
+        })
+        .collect();
+
+    let mut walls: Vec<Vec<Vec3>> = Vec::new();
+    let wall_pieces = |hole: Option<&[Vec2]>, map: &dyn Fn(Vec2) -> Vec3, inward: Vec3| {
+        let pieces = match hole {
+            Some(hole) => rectangle_less_hole([-w, w], [0.0, h], hole),
+            None => vec![vec![
+                Vec2::new(-w, 0.0),
+                Vec2::new(w, 0.0),
+                Vec2::new(w, h),
+                Vec2::new(-w, h),
+            ]],
+        };
+        pieces
+            .into_iter()
+            .map(|p| facing(p.into_iter().map(map).collect(), inward))
+            .collect::<Vec<_>>()
+    };
+    walls.extend(wall_pieces(Some(&north_window), &north, Vec3::Z));
+    walls.extend(wall_pieces(two.then_some(&hexagon[..]), &east, -Vec3::X));
+    walls.extend(wall_pieces(None, &|p| Vec3::new(p.x, p.y, w), -Vec3::Z));
+    walls.extend(wall_pieces(None, &|p| Vec3::new(-w, p.y, p.x), Vec3::X));
+    walls.push(rect_y(0.0, 0.0, w, w, h, false));
+    b.flat("floor", floor, &[rect_y(0.0, 0.0, w, w, 0.0, true)]);
+    b.flat("walls", wall, &walls);
+    let blob = blob(Vec3::new(-0.35, 0.42, 0.35), 0.4, 3);
+    b.desc.meshes.push(MeshDesc {
+        material: object,
+        ..blob
+    });
+
+    let window_corners = |hole: &[Vec2], map: &dyn Fn(Vec2) -> Vec3, inward: Vec3| {
+        facing(hole.iter().map(|&p| map(p)).collect(), inward)
+    };
+    b.portal(
+        "window_north",
+        ENVIRONMENT_TARGET,
+        &window_corners(&north_window, &north, Vec3::Z),
+    );
+    if two {
+        b.portal(
+            "window_east",
+            ENVIRONMENT_TARGET,
+            &window_corners(&hexagon, &east, -Vec3::X),
+        );
+    }
+    b.desc.environment = Some(EnvironmentDesc {
+        map: EnvMap::Image {
+            file: None,
+            image: Arc::new(sky_image()),
+        },
+        strength: 1.0,
+        rotation_degrees: 0.0,
+    });
+    b.camera(Vec3::new(1.5, 1.5, 1.85), Vec3::new(-0.4, 0.7, -0.6), 62.0);
     b.desc
 }
 

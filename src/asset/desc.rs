@@ -4,6 +4,7 @@
 use glam::{Mat4, Vec2, Vec3, Vec4};
 use std::sync::Arc;
 
+use crate::asset::environment::EnvironmentDesc;
 use crate::asset::texture::{Image, TextureRef};
 use crate::camera::Camera;
 
@@ -164,7 +165,8 @@ pub struct MeshDesc {
     pub tangents: Vec<Vec4>,
 }
 
-/// A portal as authored: a node whose `extras` name its light.
+/// A portal as authored: a node whose `extras` name its light, or `"environment"`
+/// ([`crate::asset::environment::ENVIRONMENT_TARGET`]) for a window onto the sky.
 #[derive(Clone, Debug, PartialEq)]
 pub struct PortalDesc {
     pub name: String,
@@ -184,6 +186,23 @@ pub struct PortalDesc {
 pub const DEFAULT_PORTAL_ALPHA: f32 = 0.1;
 
 impl PortalDesc {
+    /// Whether it is a window portal onto the environment.
+    pub fn is_window(&self) -> bool {
+        self.target == crate::asset::environment::ENVIRONMENT_TARGET
+    }
+
+    /// The same portal with its front turned over (its triangles' winding reversed).
+    pub fn flipped(&self) -> Self {
+        PortalDesc {
+            local_triangles: self
+                .local_triangles
+                .iter()
+                .map(|&[a, b, c]| [a, c, b])
+                .collect(),
+            ..self.clone()
+        }
+    }
+
     /// A new portal (not from a file) over the convex polygon `corners`, in world space, with
     /// the default alpha; its mesh is the polygon's fan.
     pub fn from_polygon(name: String, target: String, corners: &[Vec3]) -> Self {
@@ -255,6 +274,8 @@ pub struct SceneDesc {
     /// Decoded images that materials' textures name by index (shared, not copied, when a
     /// description is cloned for a portal edit).
     pub images: Vec<Arc<Image>>,
+    /// The sky: what rays leaving the scene see, sampled as a light (none: black).
+    pub environment: Option<EnvironmentDesc>,
     /// What the file holds that is not read (an extension, a texture), each naming the file
     /// and what is left out: shown to the user, never dropped in silence.
     pub warnings: Vec<String>,

@@ -3,5 +3,6 @@
 
 pub mod builtin;
 pub mod desc;
+pub mod environment;
 pub mod gltf;
 pub mod texture;

@@ -60,14 +60,42 @@ pub fn run(command: Command) -> Result<()> {
     }
 }
 
-/// Opens a built-in scene or a glTF file, printing on stderr what the file holds that is not
-/// read.
-fn open_scene(name: &str) -> Result<Scene> {
-    let scene = Scene::open(name)?;
+/// Opens a built-in scene or a glTF file with the command line's environment, printing on
+/// stderr what the file holds that is not read.
+fn open_scene(name: &str, environment: &EnvironmentArgs) -> Result<Scene> {
+    let mut scene = Scene::open(name)?;
     for warning in &scene.desc.warnings {
         eprintln!("warning: {warning}");
     }
+    if environment.environment.is_some()
+        || environment.environment_strength.is_some()
+        || environment.environment_rotation.is_some()
+    {
+        let desc = crate::asset::environment::with_overrides(
+            scene.desc.environment.as_ref(),
+            environment.environment.as_deref(),
+            environment.environment_strength,
+            environment.environment_rotation,
+        )?;
+        scene = scene.with_environment(desc)?;
+    }
     Ok(scene)
+}
+
+/// The environment: what rays leaving the scene see, lighting it through window portals.
+#[derive(Args, Debug, Clone, Default)]
+pub struct EnvironmentArgs {
+    /// An equirectangular .hdr or .exr image, or a constant colour R,G,B (replaces the
+    /// scene's `environment`).
+    #[arg(long, value_name = "FILE|R,G,B")]
+    pub environment: Option<String>,
+    /// Multiplies the environment's radiance (default: the scene's, else 1).
+    #[arg(long, value_name = "S")]
+    pub environment_strength: Option<f32>,
+    /// Turns the environment about +Y, in degrees, as Blender's Mapping node's Z rotation
+    /// (default: the scene's, else 0).
+    #[arg(long, value_name = "DEG", allow_negative_numbers = true)]
+    pub environment_rotation: Option<f32>,
 }
 
 /// Image options shared by `render` and `compare` (their widths differ in default).
@@ -85,4 +113,6 @@ pub struct ImageArgs {
     /// independent ones.
     #[arg(long, value_enum, default_value_t = SamplerKind::default())]
     pub sampler: SamplerKind,
+    #[command(flatten)]
+    pub environment: EnvironmentArgs,
 }

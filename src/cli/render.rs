@@ -49,7 +49,7 @@ pub fn run(args: &RenderArgs) -> Result<()> {
     if let Some(a) = args.alpha {
         anyhow::ensure!((0.0..=1.0).contains(&a), "--alpha {a} is not in [0, 1]");
     }
-    let scene = super::open_scene(&args.scene)?;
+    let scene = super::open_scene(&args.scene, &args.image.environment)?;
     let width = args.width;
     let height = args
         .image

@@ -108,6 +108,26 @@ pub fn scene_hash(scene: &Scene, image: ImageSpec) -> u64 {
         h.u64(p.polygon.vertices().len() as u64);
         p.polygon.vertices().iter().for_each(|&v| h.vec3(v));
     }
+    // The environment lights the scene; windows only change how it is sampled, but are kept
+    // like portals.
+    if let Some(e) = &scene.desc.environment {
+        h.str("environment");
+        h.f32(e.strength);
+        h.f32(e.rotation_degrees);
+        match &e.map {
+            crate::asset::environment::EnvMap::Constant(c) => h.vec3(*c),
+            crate::asset::environment::EnvMap::Image { image, .. } => {
+                h.u32(image.width);
+                h.u32(image.height);
+                image.pixels.iter().for_each(|&p| h.vec3(p));
+            }
+        }
+    }
+    h.u64(scene.windows.len() as u64);
+    for w in &scene.windows {
+        h.f32(w.alpha);
+        w.polygon.vertices().iter().for_each(|&v| h.vec3(v));
+    }
     let c = &scene.camera;
     [c.eye, c.target, c.up].into_iter().for_each(|v| h.vec3(v));
     h.f32(c.yfov);

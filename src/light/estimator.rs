@@ -94,21 +94,25 @@ pub struct LightSample {
     pub technique_pdf: f32,
 }
 
-/// What [`LightSampler::pick`] chose: an area light or a lamp, by index in its own list.
+/// What [`LightSampler::pick`] chose: an area light or a lamp, by index in its own list, or
+/// the environment.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum PickedLight {
     Area(usize),
     Lamp(usize),
+    Environment,
 }
 
 /// Samples lights for a scene under one strategy.
 #[derive(Clone, Debug)]
 pub struct LightSampler {
     strategy: Strategy,
-    /// Area lights, then lamps, by power.
+    /// Area lights, then lamps, then the environment (if any), by power.
     by_power: Distribution1D,
     /// How many area lights come first in `by_power`.
     area_lights: usize,
+    /// How many lamps follow them.
+    lamps: usize,
     /// Portal indices of each light.
     portals_of: Vec<ArrayVec<usize, MAX_TERMS>>,
     /// Alpha of each light.
@@ -140,9 +144,11 @@ impl LightSampler {
                 lights
                     .iter()
                     .map(AreaLight::power)
-                    .chain(scene.lamps().iter().map(Lamp::power)),
+                    .chain(scene.lamps().iter().map(Lamp::power))
+                    .chain(scene.environment().map(|e| e.power())),
             ),
             area_lights: lights.len(),
+            lamps: scene.lamps().len(),
             portals_of,
             alpha_of,
         }
@@ -153,7 +159,8 @@ impl LightSampler {
         let (i, p, _) = self.by_power.sample(u)?;
         let picked = match i.checked_sub(self.area_lights) {
             None => PickedLight::Area(i),
-            Some(k) => PickedLight::Lamp(k),
+            Some(k) if k < self.lamps => PickedLight::Lamp(k),
+            Some(_) => PickedLight::Environment,
         };
         Some((picked, p))
     }
@@ -166,6 +173,11 @@ impl LightSampler {
     /// The probability of picking lamp `lamp`.
     pub fn lamp_probability(&self, lamp: usize) -> f32 {
         self.by_power.pmf(self.area_lights + lamp)
+    }
+
+    /// The probability of picking the environment (0 without one).
+    pub fn environment_probability(&self) -> f32 {
+        self.by_power.pmf(self.area_lights + self.lamps)
     }
 
     /// Classifies `x` against the light's portals and fixes the mixture there.

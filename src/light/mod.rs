@@ -2,17 +2,22 @@
 
 pub mod antishadow;
 pub mod area;
+pub mod environment;
 pub mod estimator;
 pub mod hull;
 pub mod portal;
 pub mod punctual;
+pub mod sky;
+pub mod window;
 
 use serde::{Deserialize, Serialize};
 
 use antishadow::Region;
 use area::AreaLight;
+use environment::Environment;
 use portal::Portal;
 use punctual::Lamp;
+use window::Window;
 
 /// A scene's lights and the portals onto them: all that light sampling reads. The scene
 /// implements it, so this layer never needs to know what a scene is.
@@ -21,6 +26,14 @@ pub trait LightSet {
     fn portals(&self) -> &[Portal];
     /// Punctual lamps, picked with the area lights by power (none by default).
     fn lamps(&self) -> &[Lamp] {
+        &[]
+    }
+    /// The environment, picked with the lights by power (none by default).
+    fn environment(&self) -> Option<&Environment> {
+        None
+    }
+    /// Window portals onto the environment (none by default).
+    fn windows(&self) -> &[Window] {
         &[]
     }
 }

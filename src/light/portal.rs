@@ -32,6 +32,9 @@ pub enum PortalError {
         target: String,
         error: AntishadowError,
     },
+    /// A window portal onto the environment that cannot be used.
+    #[error(transparent)]
+    Window(#[from] super::window::WindowError),
 }
 
 /// A validated portal with its antishadow planes, ready to classify and sample.

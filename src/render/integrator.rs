@@ -8,7 +8,8 @@ use super::stats::{Stats, TIMING_STRIDE, timer_overhead};
 use crate::asset::desc::AlphaMode;
 use crate::light::area::LightPoint;
 use crate::light::estimator::{LightContext, LightSample, LightSampler, PickedLight};
-use crate::light::{Strategy, Technique};
+use crate::light::sky::{SkyContext, SkySampler};
+use crate::light::{LightSet, Strategy, Technique};
 use crate::material::Material;
 use crate::sampling::{Frame, Sampler, SamplerKind, power_heuristic};
 use crate::scene::bvh::Tracer;
@@ -71,6 +72,8 @@ struct Previous<'c> {
 pub struct Integrator<'a> {
     scene: &'a Scene,
     lights: LightSampler,
+    /// The environment through the windows.
+    sky: SkySampler,
     settings: RenderSettings,
     /// Every light is one polygon, and there are few: the last bounce can find the light it
     /// reaches by intersecting the polygons and tracing one occlusion ray, instead of a
@@ -87,10 +90,13 @@ impl<'a> Integrator<'a> {
         Integrator {
             scene,
             lights: LightSampler::new(scene, settings.strategy, settings.alpha),
+            sky: SkySampler::new(scene, settings.strategy, settings.alpha),
             settings,
             // A cut-out light lets rays through its holes: it must be found by tracing.
             polygon_lights: lights.len() <= DIRECT_LIGHT_TEST_LIMIT
                 && lights.iter().all(|l| l.polygon.is_some())
+                // Rays that leave the scene see the environment: the shortcut would miss it.
+                && scene.environment.is_none()
                 && scene
                     .geometry
                     .light_surfaces
@@ -110,6 +116,10 @@ impl<'a> Integrator<'a> {
 
     pub fn lights(&self) -> &LightSampler {
         &self.lights
+    }
+
+    pub fn sky(&self) -> &SkySampler {
+        &self.sky
     }
 
     /// A ray origin just off the surface at `p` on the side of `n`, scaled to the coordinates.
@@ -158,6 +168,7 @@ impl<'a> Integrator<'a> {
                 stats.bounce_rays += 1;
             }
             let Some(hit) = tracer.closest_hit(o, d, 0.0, f32::INFINITY) else {
+                l += beta * self.environment_along(d, previous.map(|(x, _, pdf)| (x, pdf)));
                 break;
             };
             let tri = &geometry.triangles[hit.triangle as usize];
@@ -307,6 +318,32 @@ impl<'a> Integrator<'a> {
         }
     }
 
+    /// The environment's radiance along `d` for a ray that left the scene, MIS-weighted against
+    /// the environment's technique at the previous vertex `(x, bsdf_pdf)` (if any; a camera
+    /// ray sees it unweighted).
+    fn environment_along(&self, d: Vec3, previous: Option<(Vec3, f32)>) -> Vec3 {
+        let Some(env) = self.scene.environment() else {
+            return Vec3::ZERO;
+        };
+        let le = env.radiance(d);
+        match previous {
+            None => le,
+            Some(_) if le == Vec3::ZERO => Vec3::ZERO,
+            Some((x, bsdf_pdf)) => {
+                let prob = self.lights.environment_probability();
+                let light_pdf = if prob > 0.0 {
+                    // Filled in place: a context is kilobytes, too large to return by value.
+                    let mut ctx = SkyContext::new();
+                    self.sky.fill_context(self.scene, x, &mut ctx);
+                    prob * self.sky.pdf(self.scene, &ctx, d)
+                } else {
+                    0.0
+                };
+                le * power_heuristic(bsdf_pdf, light_pdf)
+            }
+        }
+    }
+
     /// The light whose polygon the ray `o + t·d` meets first, and the distance `t`.
     fn nearest_light_polygon(&self, o: Vec3, d: Vec3) -> Option<(usize, f32)> {
         self.scene
@@ -376,6 +413,12 @@ impl<'a> Integrator<'a> {
                     context_filled: false,
                 });
             }
+            (PickedLight::Environment, p) => {
+                return Some(Direct {
+                    l: self.sky_direct(tracer, p, s, u_technique, u, stats),
+                    context_filled: false,
+                });
+            }
         };
         let timed = stats.shading_points().is_multiple_of(TIMING_STRIDE);
         let start = timed.then(Instant::now);
@@ -439,6 +482,57 @@ impl<'a> Integrator<'a> {
             return Vec3::ZERO;
         }
         f * sample.irradiance * wi_local.z / lamp_prob
+    }
+
+    /// The environment's contribution through the windows: one sample of the sky mixture,
+    /// its shadow ray to infinity, weighted against BSDF sampling by the power heuristic.
+    fn sky_direct<T: Tracer>(
+        &self,
+        tracer: &T,
+        env_prob: f32,
+        s: &Shading,
+        u_technique: f32,
+        u: glam::Vec2,
+        stats: &mut Stats,
+    ) -> Vec3 {
+        let timed = stats.shading_points().is_multiple_of(TIMING_STRIDE);
+        let start = timed.then(Instant::now);
+        let mut ctx = SkyContext::new();
+        self.sky.fill_context(self.scene, s.x, &mut ctx);
+        let sample = self.sky.sample(self.scene, &ctx, u_technique, u);
+        if let Some(start) = start {
+            let spent = start.elapsed().saturating_sub(timer_overhead());
+            stats.sampling_ns += spent.as_nanos() as u64 * TIMING_STRIDE;
+        }
+        if ctx.has_windows {
+            stats.count_region(ctx.region);
+        } else {
+            stats.no_portal += 1;
+        }
+        let Some(sample) = sample else {
+            stats.empty_samples += 1;
+            return Vec3::ZERO;
+        };
+        stats.count_technique(sample.technique.technique());
+        if sample.le == Vec3::ZERO
+            || sample.pdf.is_nan()
+            || sample.pdf <= 0.0
+            || env_prob <= 0.0
+            || sample.wi.dot(s.ng) <= 0.0
+        {
+            return Vec3::ZERO;
+        }
+        let wi_local = s.frame.to_local(sample.wi);
+        let (f, bsdf_pdf) = s.material.eval_pdf(s.wo_local, wi_local);
+        if f == Vec3::ZERO {
+            return Vec3::ZERO;
+        }
+        stats.shadow_rays += 1;
+        if tracer.occluded(s.x, sample.wi, 0.0, f32::INFINITY) {
+            return Vec3::ZERO;
+        }
+        let light_pdf = env_prob * sample.pdf;
+        f * sample.le * wi_local.z * power_heuristic(light_pdf, bsdf_pdf) / light_pdf
     }
 
     /// A light sample's contribution, weighted against BSDF sampling by the power heuristic.

@@ -8,6 +8,7 @@ use rayon::prelude::*;
 use super::integrator::Integrator;
 use crate::light::antishadow::Region;
 use crate::light::estimator::LightSampler;
+use crate::light::sky::SkySampler;
 use crate::light::{Strategy, Technique};
 use crate::scene::Scene;
 
@@ -16,9 +17,11 @@ use crate::scene::Scene;
 pub struct PrimaryBuffer {
     pub width: u32,
     pub height: u32,
+    /// Area-light portals, then window portals (`scene.portals`, then `scene.windows`).
     pub portal_count: usize,
-    /// `regions[pixel * portal_count + j]`: the hit point's region for portal `j`; `None`
-    /// where the ray hits nothing.
+    /// `regions[pixel * portal_count + j]`: the hit point's region for portal `j` (for a
+    /// window: antiantumbra in front of it, where it sees the sky through it, else behind);
+    /// `None` where the ray hits nothing.
     pub regions: Vec<Option<Region>>,
     /// The region summarising all portals (the one the antishadow mode weights most).
     pub combined: Vec<Option<Region>>,
@@ -35,7 +38,8 @@ impl PrimaryBuffer {
     /// agree except within a hair of the planes).
     pub fn compute(scene: &Scene, width: u32, height: u32, brute_force: bool) -> PrimaryBuffer {
         let sampler = LightSampler::new(scene, Strategy::Antishadow, None);
-        let portal_count = scene.portals.len();
+        let sky = SkySampler::new(scene, Strategy::Antishadow, None);
+        let portal_count = scene.portals.len() + scene.windows.len();
         let aspect = width as f32 / height as f32;
         let rows: Vec<Vec<PixelClass>> = (0..height)
             .into_par_iter()
@@ -44,7 +48,7 @@ impl PrimaryBuffer {
                     .map(|x| {
                         let ndc = (Vec2::new(x as f32, y as f32) + 0.5)
                             / Vec2::new(width as f32, height as f32);
-                        classify_ray(scene, &sampler, ndc, aspect, brute_force)
+                        classify_ray(scene, (&sampler, &sky), ndc, aspect, brute_force)
                     })
                     .collect()
             })
@@ -103,7 +107,7 @@ type PixelClass = (
 
 fn classify_ray(
     scene: &Scene,
-    sampler: &LightSampler,
+    (sampler, sky): (&LightSampler, &SkySampler),
     ndc: Vec2,
     aspect: f32,
     brute_force: bool,
@@ -111,7 +115,12 @@ fn classify_ray(
     let (o, d) = scene.camera.ray(ndc, aspect);
     let g = &scene.geometry;
     let Some(hit) = g.bvh.closest_hit(o, d, 0.0, f32::INFINITY) else {
-        return (None, vec![None; scene.portals.len()], None, None);
+        return (
+            None,
+            vec![None; scene.portals.len() + scene.windows.len()],
+            None,
+            None,
+        );
     };
     let tri = &g.triangles[hit.triangle as usize];
     let (p, _) = tri.point(hit.bary);
@@ -125,7 +134,19 @@ fn classify_ray(
             portal.planes.classify(x)
         }
     };
-    let regions: Vec<Option<Region>> = scene.portals.iter().map(|p| Some(classify(p))).collect();
+    let window_region = |w: &crate::light::window::Window| {
+        Some(if w.in_front(x) {
+            Region::Antiantumbra
+        } else {
+            Region::Behind
+        })
+    };
+    let regions: Vec<Option<Region>> = scene
+        .portals
+        .iter()
+        .map(|p| Some(classify(p)))
+        .chain(scene.windows.iter().map(window_region))
+        .collect();
     let mut best: Option<(f32, Region, Option<Technique>)> = None;
     for light in 0..g.lights.len() {
         let ctx = sampler.context(scene, light, x);
@@ -139,6 +160,19 @@ fn classify_ray(
         let weight = sampler.light_probability(light) * top.map_or(0.0, |t| t.weight);
         if best.is_none_or(|(w, _, _)| weight > w) {
             best = Some((weight, ctx.region, top.map(|t| t.technique)));
+        }
+    }
+    if scene.environment.is_some() {
+        let ctx = sky.context(scene, x);
+        if ctx.has_windows {
+            let top = ctx
+                .terms
+                .iter()
+                .max_by(|a, b| a.weight.total_cmp(&b.weight));
+            let weight = sampler.environment_probability() * top.map_or(0.0, |t| t.weight);
+            if best.is_none_or(|(w, _, _)| weight > w) {
+                best = Some((weight, ctx.region, top.map(|t| t.technique.technique())));
+            }
         }
     }
     let (combined, technique) = best.map_or((None, None), |(_, r, t)| (Some(r), t));

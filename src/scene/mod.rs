@@ -8,12 +8,15 @@ use std::sync::Arc;
 
 use crate::asset::desc::{AlphaMode, MeshDesc};
 use crate::asset::desc::{LampKind, PortalDesc, SceneDesc};
+use crate::asset::environment::{EnvironmentDesc, EnvironmentError, check_numbers};
 use crate::asset::{builtin, gltf};
 use crate::camera::Camera;
 use crate::light::LightSet;
 use crate::light::area::AreaLight;
+use crate::light::environment::Environment;
 use crate::light::portal::{Portal, PortalError};
 use crate::light::punctual::Lamp;
+use crate::light::window::Window;
 use crate::material::Material;
 use crate::surface::{MissingImage, SurfacePoint, SurfaceTextures};
 use bvh::{Bvh, CutoutTriangle};
@@ -53,6 +56,11 @@ pub enum SceneError {
     Texture { file: String, error: MissingImage },
     #[error("unknown built-in scene '{0}' (built-ins: {names})", names = builtin::NAMES.join(", "))]
     UnknownBuiltin(String),
+    #[error("{file}: {error}")]
+    Environment {
+        file: String,
+        error: EnvironmentError,
+    },
 }
 
 /// One triangle with its shading normals, material and light.
@@ -188,6 +196,9 @@ pub struct Geometry {
     pub attributes: Vec<TriangleAttributes>,
     /// Per light: its emission over its surface, when a texture or a cut-out varies it.
     pub light_surfaces: Vec<Option<LightSurface>>,
+    /// The radius of a sphere bounding the triangles and the lamps' positions (the
+    /// environment's and directional lamps' power is the light falling on it).
+    pub radius: f32,
 }
 
 impl Geometry {
@@ -205,6 +216,10 @@ pub struct Scene {
     pub desc: Arc<SceneDesc>,
     pub geometry: Arc<Geometry>,
     pub portals: Vec<Portal>,
+    /// The environment (from `desc.environment`), if any.
+    pub environment: Option<Arc<Environment>>,
+    /// Window portals onto the environment (portals whose target is `"environment"`).
+    pub windows: Vec<Window>,
     pub camera: Camera,
     /// The glTF file it was loaded from, if any (where Save writes).
     pub source: Option<PathBuf>,
@@ -371,17 +386,22 @@ impl Scene {
             surfaces,
             attributes,
             light_surfaces,
+            radius,
         });
         let camera = match desc.camera {
             Some(c) => c,
             None => Camera::framing(bounds.0, bounds.1, 4.0 / 3.0),
         };
-        let portals = validate_portals(&desc.portals, &geometry, file)?;
+        let environment = build_environment(desc.environment.as_ref(), &geometry, file)?;
+        let (portals, windows) =
+            validate_portals(&desc.portals, &geometry, environment.as_deref(), file)?;
         Ok(Scene {
             name: desc.name.clone(),
             desc: Arc::new(desc),
             geometry,
             portals,
+            environment,
+            windows,
             camera,
             source: None,
         })
@@ -409,7 +429,8 @@ impl Scene {
     /// The same geometry with other portals (an edit); the BVH is shared, not rebuilt.
     pub fn with_portals(&self, portals: Vec<PortalDesc>) -> Result<Scene, SceneError> {
         let file = self.file_label();
-        let validated = validate_portals(&portals, &self.geometry, &file)?;
+        let (validated, windows) =
+            validate_portals(&portals, &self.geometry, self.environment.as_deref(), &file)?;
         let desc = SceneDesc {
             portals,
             ..(*self.desc).clone()
@@ -417,6 +438,7 @@ impl Scene {
         Ok(Scene {
             desc: Arc::new(desc),
             portals: validated,
+            windows,
             ..self.clone()
         })
     }
@@ -428,8 +450,16 @@ impl Scene {
         portals: Vec<PortalDesc>,
     ) -> (Scene, Vec<(usize, PortalError)>) {
         let mut valid = Vec::new();
+        let mut windows = Vec::new();
         let mut errors = Vec::new();
         for (i, d) in portals.iter().enumerate() {
+            if d.is_window() {
+                match Window::new(d, i, self.environment.as_deref()) {
+                    Ok(w) => windows.push(w),
+                    Err(e) => errors.push((i, e.into())),
+                }
+                continue;
+            }
             match portal(d, i, &self.geometry) {
                 Ok(p) => valid.push(p),
                 Err(e) => errors.push((i, e)),
@@ -442,9 +472,48 @@ impl Scene {
         let scene = Scene {
             desc: Arc::new(desc),
             portals: valid,
+            windows,
             ..self.clone()
         };
         (scene, errors)
+    }
+
+    /// The same scene under another environment (`None`: black). Windows are rebuilt for it
+    /// (their guided tables follow the image); windows that were left out stay out.
+    pub fn with_environment(
+        &self,
+        environment: Option<EnvironmentDesc>,
+    ) -> Result<Scene, SceneError> {
+        let file = self.file_label();
+        let built = build_environment(environment.as_ref(), &self.geometry, &file)?;
+        let windows = self
+            .desc
+            .portals
+            .iter()
+            .enumerate()
+            .filter(|(_, d)| d.is_window())
+            .filter_map(|(i, d)| Window::new(d, i, built.as_deref()).ok())
+            .collect();
+        let desc = SceneDesc {
+            environment,
+            ..(*self.desc).clone()
+        };
+        Ok(Scene {
+            desc: Arc::new(desc),
+            environment: built,
+            windows,
+            ..self.clone()
+        })
+    }
+
+    /// The names of the portals, then the windows: what the overlay's per-portal regions
+    /// are indexed by.
+    pub fn overlay_portal_names(&self) -> Vec<String> {
+        self.portals
+            .iter()
+            .map(|p| p.name.clone())
+            .chain(self.windows.iter().map(|w| format!("{} (window)", w.name)))
+            .collect()
     }
 
     /// How the scene is named in messages: its file, else its name.
@@ -572,6 +641,32 @@ impl LightSet for Scene {
     fn lamps(&self) -> &[Lamp] {
         &self.geometry.lamps
     }
+
+    fn environment(&self) -> Option<&Environment> {
+        self.environment.as_deref()
+    }
+
+    fn windows(&self) -> &[Window] {
+        &self.windows
+    }
+}
+
+/// The environment of `desc`, checked.
+fn build_environment(
+    desc: Option<&EnvironmentDesc>,
+    geometry: &Geometry,
+    file: &str,
+) -> Result<Option<Arc<Environment>>, SceneError> {
+    let Some(desc) = desc else {
+        return Ok(None);
+    };
+    check_numbers(desc.strength, desc.rotation_degrees).map_err(|error| {
+        SceneError::Environment {
+            file: file.to_owned(),
+            error,
+        }
+    })?;
+    Ok(Some(Arc::new(Environment::new(desc, geometry.radius))))
 }
 
 /// The portal of `desc`, the `i`-th of its scene; a portal naming a lamp is refused (a lamp
@@ -586,19 +681,25 @@ fn portal(desc: &PortalDesc, i: usize, geometry: &Geometry) -> Result<Portal, Po
     Portal::new(desc, i, &geometry.lights)
 }
 
+/// The area-light portals and the window portals of `descs`; the first error stops.
 fn validate_portals(
     descs: &[PortalDesc],
     geometry: &Geometry,
+    environment: Option<&Environment>,
     file: &str,
-) -> Result<Vec<Portal>, SceneError> {
-    descs
-        .iter()
-        .enumerate()
-        .map(|(i, d)| {
-            portal(d, i, geometry).map_err(|error| SceneError::Portal {
-                file: file.to_owned(),
-                error,
-            })
-        })
-        .collect()
+) -> Result<(Vec<Portal>, Vec<Window>), SceneError> {
+    let mut portals = Vec::new();
+    let mut windows = Vec::new();
+    let error = |error: PortalError| SceneError::Portal {
+        file: file.to_owned(),
+        error,
+    };
+    for (i, d) in descs.iter().enumerate() {
+        if d.is_window() {
+            windows.push(Window::new(d, i, environment).map_err(|e| error(e.into()))?);
+        } else {
+            portals.push(portal(d, i, geometry).map_err(error)?);
+        }
+    }
+    Ok((portals, windows))
 }

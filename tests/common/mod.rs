@@ -78,6 +78,7 @@ pub fn floor_and_light(albedo: f32, light: Vec<Vec3>, le: f32) -> SceneDesc {
         warnings: Vec::new(),
         images: Vec::new(),
         camera: camera(Vec3::new(0.0, 3.0, 3.0), Vec3::ZERO),
+        environment: None,
     }
 }
 
@@ -329,6 +330,7 @@ pub fn uv_sphere(
         positions,
         normals,
         indices,
+        ..Default::default()
     }
 }
 
@@ -364,6 +366,7 @@ pub fn tube(
         positions,
         normals,
         indices,
+        ..Default::default()
     }
 }
 

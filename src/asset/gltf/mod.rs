@@ -3,13 +3,17 @@
 //! nodes of an existing file after they were edited.
 //!
 //! A portal is a node whose `extras` hold `"portal_target": "<light node name>"` and optionally
-//! `"portal_light_probability": <alpha in [0, 1]>` (how Blender exports custom properties).
+//! `"portal_light_probability": <alpha in [0, 1]>` (how Blender exports custom properties);
+//! `"portal_target": "environment"` makes it a window onto the sky. The scene's `extras` may
+//! hold the environment: `"environment"` (an image path or `[r, g, b]`),
+//! `"environment_strength"`, `"environment_rotation"` (degrees about +Y).
 //!
 //! Every read is bounds-checked before it happens, so a malformed file is an error that names
 //! the file and the node, mesh, accessor or field at fault, never a panic.
 
 mod accessor;
 mod container;
+mod environment;
 mod lamps;
 mod read;
 mod save_portals;
@@ -19,6 +23,7 @@ mod write;
 
 use accessor::*;
 use container::*;
+use environment::*;
 use lamps::*;
 use read::*;
 use save_portals::*;
@@ -129,6 +134,7 @@ pub fn load_gltf(path: &Path) -> Result<SceneDesc, GltfError> {
         };
         let visits = walk_scene(path, &root)?;
         let mut desc = doc.scene(&visits, &mut warnings)?;
+        desc.environment = scene_environment(path, &root)?;
         desc.warnings = warnings;
         Ok(desc)
     })
@@ -158,6 +164,16 @@ pub fn export_glb(desc: &SceneDesc, path: &Path) -> Result<(), GltfError> {
 /// A `.glb` keeps its BIN chunk byte for byte; a `.gltf` keeps its external buffers.
 pub fn save_portals(path: &Path, portals: &[PortalDesc]) -> Result<(), GltfError> {
     guarded(path, || save_portals_inner(path, portals))
+}
+
+/// Sets the environment in the used scene's `extras` of the glTF or GLB file at `path` (or
+/// removes it, for `None`), changing nothing else. An image made in code is written beside the
+/// file as `<stem>_environment.hdr`.
+pub fn save_environment(
+    path: &Path,
+    environment: Option<&crate::asset::environment::EnvironmentDesc>,
+) -> Result<(), GltfError> {
+    guarded(path, || save_environment_inner(path, environment))
 }
 
 /// Runs `work`, turning a panic (a bug: every input is checked before use) into an error.

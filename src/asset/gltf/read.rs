@@ -396,6 +396,7 @@ impl<'a> Doc<'a> {
             lamps,
             camera,
             images: images.decoded,
+            environment: None,
             warnings: Vec::new(),
         })
     }

@@ -617,9 +617,13 @@ pub(super) fn export_document(
             ..Default::default()
         });
     }
+    let scene_extras = match &desc.environment {
+        Some(environment) => Some(raw_json(file, &environment_extras(file, environment)?)?),
+        None => None,
+    };
     root.scenes.push(json::Scene {
         extensions: None,
-        extras: None,
+        extras: scene_extras,
         name: Some(desc.name.clone()),
         nodes: (0..nodes.len())
             .map(|i| json_index(file, i))

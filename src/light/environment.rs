@@ -1,0 +1,256 @@
+//! The environment: radiance arriving from infinitely far, from an equirectangular image or a
+//! constant, importance-sampled (`docs/method.md` §9).
+//!
+//! Mapping (Blender's *Environment Texture*, glTF axes, +Y up), for a unit direction `d` in the
+//! map's frame: `u = 0.5 + atan2(d.z, d.x) / 2π`, row fraction from the top `v = acos(d.y) / π`.
+//! The map is turned about +Y: a world direction `w` reads the map at `R_y(rotation) · w`,
+//! which is what a Blender *Mapping* node (type Point) with Z rotation `rotation` in front of the
+//! Environment Texture does (Blender's Z is glTF's Y). Pixels are constant over their cell (no filtering), so the radiance
+//! and the sampling density are piecewise constant on the same cells.
+
+use glam::{Vec2, Vec3};
+use std::f32::consts::{PI, TAU};
+
+use super::area::luminance;
+use crate::asset::environment::{EnvImage, EnvMap, EnvironmentDesc};
+use crate::sampling::Distribution1D;
+
+/// An environment ready to sample.
+#[derive(Clone, Debug)]
+pub struct Environment {
+    map: Map,
+    /// The radiance scale (the desc's strength).
+    strength: f32,
+    /// `(sin, cos)` of the rotation about +Y.
+    rotation: (f32, f32),
+    /// Luminance power, W: what the pick among lights uses.
+    power: f32,
+}
+
+#[derive(Clone, Debug)]
+enum Map {
+    Constant(Vec3),
+    Image {
+        width: u32,
+        height: u32,
+        pixels: Vec<Vec3>,
+        /// Rows by their summed weights.
+        rows: Distribution1D,
+        /// Each row's pixels by weight.
+        columns: Vec<Distribution1D>,
+    },
+}
+
+/// The weight a pixel gets in the sampling distribution: its mean channel, positive wherever
+/// any channel is (so every direction with radiance can be drawn).
+fn sampling_weight(c: Vec3) -> f32 {
+    (c.x + c.y + c.z) / 3.0
+}
+
+impl Environment {
+    /// `scene_radius`: the radius of a sphere bounding the scene, which sets the power (the
+    /// light falling on that sphere).
+    pub fn new(desc: &EnvironmentDesc, scene_radius: f32) -> Self {
+        let rotation = desc.rotation_degrees.to_radians().sin_cos();
+        let strength = desc.strength.max(0.0);
+        let (map, mean_luminance) = match &desc.map {
+            EnvMap::Constant(c) => (Map::Constant(*c), luminance(*c)),
+            EnvMap::Image { image, .. } => image_map(image),
+        };
+        // Power onto a sphere of radius r in radiance L from every direction: 4π² r² L
+        // (pbrt-v4's uniform infinite light); the image's solid-angle mean luminance stands in.
+        let power = 4.0 * PI * PI * scene_radius * scene_radius * mean_luminance * strength;
+        Environment {
+            map,
+            strength,
+            rotation,
+            power,
+        }
+    }
+
+    /// Luminance power, for picking among lights.
+    pub fn power(&self) -> f32 {
+        if self.power.is_finite() {
+            self.power
+        } else {
+            0.0
+        }
+    }
+
+    pub fn is_constant(&self) -> bool {
+        matches!(self.map, Map::Constant(_))
+    }
+
+    /// The map's direction for world direction `w`: `R_y(rotation) · w`.
+    fn to_map(&self, w: Vec3) -> Vec3 {
+        let (s, c) = self.rotation;
+        Vec3::new(w.x * c + w.z * s, w.y, -w.x * s + w.z * c)
+    }
+
+    /// The world direction for map direction `m`: `R_y(−rotation) · m`.
+    fn to_world(&self, m: Vec3) -> Vec3 {
+        let (s, c) = self.rotation;
+        Vec3::new(m.x * c - m.z * s, m.y, m.x * s + m.z * c)
+    }
+
+    /// Radiance arriving from the unit world direction `w` (towards the sky).
+    pub fn radiance(&self, w: Vec3) -> Vec3 {
+        match &self.map {
+            Map::Constant(c) => *c * self.strength,
+            Map::Image {
+                width,
+                height,
+                pixels,
+                ..
+            } => {
+                let (i, j) = pixel_of(self.to_map(w), *width, *height);
+                pixels[(j * width + i) as usize] * self.strength
+            }
+        }
+    }
+
+    /// A unit world direction drawn proportional to the map's weight times the `sin θ` of the
+    /// equirectangular map, and its solid-angle pdf; uniform on the sphere for a constant.
+    pub fn sample(&self, u: Vec2) -> Option<(Vec3, f32)> {
+        match &self.map {
+            Map::Constant(_) => {
+                let z = 1.0 - 2.0 * u.x;
+                let r = (1.0 - z * z).max(0.0).sqrt();
+                let (s, c) = (TAU * u.y).sin_cos();
+                Some((Vec3::new(r * c, z, r * s), 1.0 / (4.0 * PI)))
+            }
+            Map::Image {
+                width,
+                height,
+                rows,
+                columns,
+                ..
+            } => {
+                let (j, p_row, v_in) = rows.sample(u.y)?;
+                let (i, p_column, u_in) = columns[j].sample(u.x)?;
+                let uu = (i as f32 + u_in) / *width as f32;
+                let vv = (j as f32 + v_in) / *height as f32;
+                let (sin_theta, cos_theta) = (PI * vv).sin_cos();
+                if sin_theta <= 0.0 {
+                    return None;
+                }
+                let (sin_phi, cos_phi) = (TAU * (uu - 0.5)).sin_cos();
+                let m = Vec3::new(sin_theta * cos_phi, cos_theta, sin_theta * sin_phi);
+                let pdf_uv = p_row * p_column * (*width * *height) as f32;
+                Some((self.to_world(m), pdf_uv / (2.0 * PI * PI * sin_theta)))
+            }
+        }
+    }
+
+    /// The solid-angle pdf of [`Self::sample`] for the unit world direction `w`.
+    pub fn pdf(&self, w: Vec3) -> f32 {
+        match &self.map {
+            Map::Constant(_) => 1.0 / (4.0 * PI),
+            Map::Image {
+                width,
+                height,
+                rows,
+                columns,
+                ..
+            } => {
+                let m = self.to_map(w);
+                // From the horizontal part: accurate near the poles, where 1 − y² cancels.
+                let sin_theta = (m.x * m.x + m.z * m.z).sqrt();
+                if sin_theta <= 0.0 {
+                    return 0.0;
+                }
+                let (i, j) = pixel_of(m, *width, *height);
+                let pdf_uv = rows.pmf(j as usize)
+                    * columns[j as usize].pmf(i as usize)
+                    * (*width * *height) as f32;
+                pdf_uv / (2.0 * PI * PI * sin_theta)
+            }
+        }
+    }
+
+    /// The weight [`Self::sample`] gives direction `w`, up to a constant: what a technique
+    /// proportional to the environment within a window follows.
+    pub fn sampling_weight(&self, w: Vec3) -> f32 {
+        sampling_weight(self.radiance(w))
+    }
+}
+
+/// The pixel (column, row) a map direction falls in.
+fn pixel_of(m: Vec3, width: u32, height: u32) -> (u32, u32) {
+    let u = 0.5 + m.z.atan2(m.x) / TAU;
+    let v = m.y.clamp(-1.0, 1.0).acos() / PI;
+    let i = ((u * width as f32) as u32).min(width - 1);
+    let j = ((v * height as f32) as u32).min(height - 1);
+    (i, j)
+}
+
+/// The image's sampling distribution and its solid-angle mean luminance.
+fn image_map(image: &EnvImage) -> (Map, f32) {
+    let (w, h) = (image.width, image.height);
+    let mut columns = Vec::with_capacity(h as usize);
+    let mut row_weights = Vec::with_capacity(h as usize);
+    let mut luminance_sum = 0.0f64;
+    for j in 0..h {
+        let theta0 = PI * j as f32 / h as f32;
+        let theta1 = PI * (j + 1) as f32 / h as f32;
+        let sin_centre = (0.5 * (theta0 + theta1)).sin();
+        // Each pixel's solid angle: 2π/w · (cos θ0 − cos θ1).
+        let pixel_solid_angle = (TAU / w as f32) * (theta0.cos() - theta1.cos());
+        let row = Distribution1D::new((0..w).map(|i| sampling_weight(image.pixel(i, j))));
+        luminance_sum += (0..w)
+            .map(|i| f64::from(luminance(image.pixel(i, j)) * pixel_solid_angle))
+            .sum::<f64>();
+        row_weights.push(row.total() * sin_centre);
+        columns.push(row);
+    }
+    let mean = (luminance_sum / (4.0 * std::f64::consts::PI)) as f32;
+    (
+        Map::Image {
+            width: w,
+            height: h,
+            pixels: image.pixels.clone(),
+            rows: Distribution1D::new(row_weights),
+            columns,
+        },
+        mean,
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::sync::Arc;
+
+    #[test]
+    fn mapping_follows_blender() {
+        // +X is the image's centre column, the top row is +Y.
+        let image = EnvImage {
+            width: 4,
+            height: 2,
+            pixels: (0..8).map(|k| Vec3::splat(k as f32 + 1.0)).collect(),
+        };
+        let desc = EnvironmentDesc {
+            map: EnvMap::Image {
+                file: None,
+                image: Arc::new(image),
+            },
+            strength: 1.0,
+            rotation_degrees: 0.0,
+        };
+        let env = Environment::new(&desc, 1.0);
+        let up_x = Vec3::new(1.0, 0.3, 0.01).normalize();
+        assert_eq!(env.radiance(up_x), Vec3::splat(3.0)); // row 0, u just over 0.5: column 2
+        let down_minus_z = Vec3::new(0.01, -0.3, -1.0).normalize();
+        assert_eq!(env.radiance(down_minus_z), Vec3::splat(6.0)); // row 1, u ≈ 0.25: column 1
+        // Turned by 90° about +Y, the map's +X column is seen from world +Z.
+        let turned = Environment::new(
+            &EnvironmentDesc {
+                rotation_degrees: 90.0,
+                ..desc
+            },
+            1.0,
+        );
+        let from_z = Vec3::new(-0.01, 0.3, 1.0).normalize();
+        assert_eq!(turned.radiance(from_z), Vec3::splat(3.0));
+    }
+}

@@ -1,0 +1,305 @@
+//! The estimator for the environment (`docs/method.md` §9): the same single-sample mixture as
+//! for an area light, with the environment as the light and window portals as its portals,
+//!
+//! `q(ω) = alpha · p_env(ω) + (1 − alpha) · Σ_j w_j(x) · p_{s_j}(ω | x)`,
+//!
+//! always weighted by the whole mixture's pdf. A point in front of a window sees the sky
+//! through all of it (its antiantumbra), so a window needs no antishadow planes: the region is
+//! `Antiantumbra` in front, `Behind` otherwise. Weights follow each window's solid angle from
+//! `x` (under the guided technique, the environment's table integral over the window's box);
+//! alpha is the largest `portal_light_probability` of the windows, or the override.
+
+use arrayvec::ArrayVec;
+use glam::{Vec2, Vec3};
+
+use super::antishadow::Region;
+use super::estimator::MAX_TERMS;
+use super::window::{GuidedBox, Window};
+use super::{LightSet, Strategy, Technique};
+use crate::sampling::spherical::SphericalPolygon;
+
+/// How one direction towards the sky is drawn.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum SkyTechnique {
+    /// Environment importance sampling (the light technique).
+    Environment,
+    /// Uniform on the window's area (the portal technique).
+    WindowArea,
+    /// Uniform in the window's solid angle (the projection technique).
+    SolidAngle,
+    /// Proportional to the environment within the window's solid angle.
+    Guided,
+}
+
+impl SkyTechnique {
+    pub fn name(self) -> &'static str {
+        match self {
+            SkyTechnique::Environment => "environment",
+            SkyTechnique::WindowArea => "window area",
+            SkyTechnique::SolidAngle => "window solid angle",
+            SkyTechnique::Guided => "environment within window",
+        }
+    }
+
+    /// The area-light technique it corresponds to (statistics, overlays).
+    pub fn technique(self) -> Technique {
+        match self {
+            SkyTechnique::Environment => Technique::Light,
+            SkyTechnique::WindowArea => Technique::Portal,
+            SkyTechnique::SolidAngle | SkyTechnique::Guided => Technique::Projection,
+        }
+    }
+
+    /// The window technique of `strategy` for a point in front of a window (`None` for light
+    /// sampling, which ignores windows). Antishadow's region there is the antiantumbra; beyond
+    /// the peers, it samples the environment within the window rather than the window alone.
+    pub fn of(strategy: Strategy, guided_available: bool) -> Option<SkyTechnique> {
+        match strategy {
+            Strategy::Light => None,
+            Strategy::Portal => Some(SkyTechnique::WindowArea),
+            Strategy::Projection => Some(SkyTechnique::SolidAngle),
+            Strategy::Antishadow if guided_available => Some(SkyTechnique::Guided),
+            // A constant sky is uniform within the window: the solid angle is exact.
+            Strategy::Antishadow => Some(SkyTechnique::SolidAngle),
+        }
+    }
+}
+
+/// One window's part in the mixture at a shading point.
+#[derive(Clone, Debug)]
+pub struct WindowTerm {
+    pub window: usize,
+    pub technique: SkyTechnique,
+    /// `w_j(x)`; the terms' weights sum to 1.
+    pub weight: f32,
+    /// The window seen from x (solid-angle technique, and weights).
+    pub spherical: Option<SphericalPolygon>,
+    /// The window's box in the guided parameterisation (guided technique).
+    pub guided: Option<GuidedBox>,
+}
+
+/// What the estimator knows about the environment at one shading point.
+#[derive(Clone, Debug)]
+pub struct SkyContext {
+    pub x: Vec3,
+    pub alpha: f32,
+    /// Whether the strategy uses windows and the scene has some.
+    pub has_windows: bool,
+    /// Whether `x` is in front of a window (else environment sampling alone).
+    pub uses_windows: bool,
+    pub terms: ArrayVec<WindowTerm, MAX_TERMS>,
+    /// `Antiantumbra` in front of a window, else `Behind`.
+    pub region: Region,
+}
+
+impl SkyContext {
+    pub fn new() -> Self {
+        SkyContext {
+            x: Vec3::ZERO,
+            alpha: 1.0,
+            has_windows: false,
+            uses_windows: false,
+            terms: ArrayVec::new(),
+            region: Region::Behind,
+        }
+    }
+}
+
+impl Default for SkyContext {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+/// A direction drawn towards the sky.
+#[derive(Clone, Copy, Debug)]
+pub struct SkySample {
+    pub wi: Vec3,
+    /// The environment's radiance along `wi` (before occlusion).
+    pub le: Vec3,
+    /// The mixture pdf `q(wi)`, solid angle, excluding the light-selection probability.
+    pub pdf: f32,
+    pub technique: SkyTechnique,
+    /// The drawing technique's own density for `wi`, as its sampling procedure computed it.
+    pub technique_pdf: f32,
+}
+
+/// Samples the environment through the scene's windows under one strategy.
+#[derive(Clone, Debug)]
+pub struct SkySampler {
+    strategy: Strategy,
+    alpha: f32,
+}
+
+impl SkySampler {
+    /// `alpha_override` replaces every window's alpha.
+    pub fn new(scene: &impl LightSet, strategy: Strategy, alpha_override: Option<f32>) -> Self {
+        let authored = scene.windows().iter().map(|w| w.alpha).fold(0.0, f32::max);
+        SkySampler {
+            strategy,
+            alpha: alpha_override.unwrap_or(authored).clamp(0.0, 1.0),
+        }
+    }
+
+    pub fn strategy(&self) -> Strategy {
+        self.strategy
+    }
+
+    /// The windows `x` is in front of and the mixture there.
+    pub fn context(&self, scene: &impl LightSet, x: Vec3) -> SkyContext {
+        let mut ctx = SkyContext::new();
+        self.fill_context(scene, x, &mut ctx);
+        ctx
+    }
+
+    /// [`Self::context`] into a reused buffer.
+    pub fn fill_context(&self, scene: &impl LightSet, x: Vec3, ctx: &mut SkyContext) {
+        let windows = scene.windows();
+        ctx.x = x;
+        ctx.alpha = self.alpha;
+        ctx.uses_windows = false;
+        ctx.has_windows = self.strategy != Strategy::Light && !windows.is_empty();
+        ctx.terms.clear();
+        ctx.region = Region::Behind;
+        if !ctx.has_windows {
+            return;
+        }
+        let in_front = windows.iter().enumerate().filter(|(_, w)| w.in_front(x));
+        let several = windows.iter().filter(|w| w.in_front(x)).count() > 1;
+        for (j, window) in in_front.take(MAX_TERMS) {
+            ctx.uses_windows = true;
+            ctx.region = Region::Antiantumbra;
+            let Some(technique) = SkyTechnique::of(self.strategy, window.is_guided()) else {
+                continue;
+            };
+            if ctx
+                .terms
+                .try_push(WindowTerm {
+                    window: j,
+                    technique,
+                    weight: 1.0,
+                    spherical: None,
+                    guided: None,
+                })
+                .is_err()
+            {
+                break;
+            }
+            let Some(term) = ctx.terms.last_mut() else {
+                break;
+            };
+            if technique == SkyTechnique::Guided {
+                term.guided = window.guided_box(x);
+            }
+            if technique == SkyTechnique::SolidAngle
+                || (several && technique != SkyTechnique::Guided)
+            {
+                term.spherical = window.solid_angle(x);
+            }
+            if several {
+                // Guided terms share by the environment's weight through each window's box
+                // (its table integral), so that the window that sees the sun gets the samples;
+                // the others by solid angle. Either depends on x alone.
+                term.weight = match technique {
+                    SkyTechnique::Guided => {
+                        term.guided.as_ref().map_or(0.0, |b| b.integral() as f32)
+                    }
+                    _ => term.spherical.as_ref().map_or(0.0, |q| q.solid_angle()),
+                };
+            }
+            let usable = match technique {
+                SkyTechnique::SolidAngle => term.spherical.is_some(),
+                SkyTechnique::Guided => term.guided.is_some(),
+                _ => true,
+            };
+            if term.weight <= 0.0 || !usable {
+                ctx.terms.pop();
+            }
+        }
+        let total: f32 = ctx.terms.iter().map(|t| t.weight).sum();
+        for term in ctx.terms.iter_mut() {
+            term.weight /= total;
+        }
+    }
+
+    /// Draws a direction from the mixture; `None` when the drawn share draws nothing (a guided
+    /// draw outside its window, an edge-on window) or the scene has no environment.
+    pub fn sample(
+        &self,
+        scene: &impl LightSet,
+        ctx: &SkyContext,
+        u_technique: f32,
+        u: Vec2,
+    ) -> Option<SkySample> {
+        let env = scene.environment()?;
+        let x = ctx.x;
+        let (technique, (wi, technique_pdf)) = if !ctx.uses_windows || u_technique < ctx.alpha {
+            (SkyTechnique::Environment, env.sample(u)?)
+        } else {
+            let mut v = (u_technique - ctx.alpha) / (1.0 - ctx.alpha);
+            let term = ctx.terms.iter().find(|t| {
+                let hit = v < t.weight;
+                v -= t.weight;
+                hit
+            });
+            let term = term.or(ctx.terms.last())?;
+            let window = &scene.windows()[term.window];
+            let sampled = match term.technique {
+                SkyTechnique::Environment => env.sample(u)?,
+                SkyTechnique::WindowArea => window.sample_area(x, u)?,
+                SkyTechnique::SolidAngle => term.spherical.as_ref()?.sample(u)?,
+                SkyTechnique::Guided => window.sample_guided(term.guided.as_ref()?, x, u)?,
+            };
+            (term.technique, sampled)
+        };
+        let pdf = if ctx.uses_windows {
+            self.pdf(scene, ctx, wi)
+        } else {
+            technique_pdf
+        };
+        Some(SkySample {
+            wi,
+            le: env.radiance(wi),
+            pdf,
+            technique,
+            technique_pdf,
+        })
+    }
+
+    /// The mixture pdf `q(wi)`.
+    pub fn pdf(&self, scene: &impl LightSet, ctx: &SkyContext, wi: Vec3) -> f32 {
+        let Some(env) = scene.environment() else {
+            return 0.0;
+        };
+        let p_env = env.pdf(wi);
+        if !ctx.uses_windows {
+            return p_env;
+        }
+        let windows: f32 = ctx
+            .terms
+            .iter()
+            .map(|t| t.weight * window_term_pdf(scene, ctx.x, t, p_env, wi))
+            .sum();
+        ctx.alpha * p_env + (1.0 - ctx.alpha) * windows
+    }
+}
+
+/// `p_{s_j}(wi | x)`: one window term's technique density (`p_env` is `p_env(wi)`).
+pub fn window_term_pdf(
+    scene: &impl LightSet,
+    x: Vec3,
+    term: &WindowTerm,
+    p_env: f32,
+    wi: Vec3,
+) -> f32 {
+    let window: &Window = &scene.windows()[term.window];
+    match term.technique {
+        SkyTechnique::Environment => p_env,
+        SkyTechnique::WindowArea => window.area_pdf(x, wi),
+        SkyTechnique::SolidAngle => term.spherical.as_ref().map_or(0.0, |q| q.pdf(wi)),
+        SkyTechnique::Guided => term
+            .guided
+            .as_ref()
+            .map_or(0.0, |b| window.guided_pdf(b, x, wi)),
+    }
+}

@@ -1,0 +1,461 @@
+//! Window portals: convex polygons through which the environment lights a room
+//! (`docs/method.md` §9). A window's front, where shading points are, is the side its normal
+//! points to (the winding's, counter-clockwise); directions through it from a point in front
+//! reach the sky unless geometry outside blocks them.
+//!
+//! Three techniques sample directions through a window: uniform on its area
+//! ([`Window::sample_area`]), uniform in its solid angle (the spherical-polygon sampler), and
+//! proportional to the environment within it ([`Window::sample_guided`]), whose table lives in a
+//! parameterisation that does not depend on the shading point (after Bitterli et al. 2015).
+
+use glam::{DVec3, Vec2, Vec3};
+use std::f64::consts::FRAC_PI_2;
+
+use super::environment::Environment;
+use crate::asset::desc::PortalDesc;
+use crate::sampling::cyclic_pairs;
+use crate::sampling::polygon::{ConvexPolygon, PolygonError};
+use crate::sampling::spherical::SphericalPolygon;
+
+/// Why a window portal cannot be used; every message names the node.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum WindowError {
+    #[error("window portal node '{portal}': its mesh {error}")]
+    BadPolygon { portal: String, error: PolygonError },
+    #[error("window portal node '{portal}': portal_light_probability {alpha} is not in [0, 1]")]
+    BadAlpha { portal: String, alpha: f32 },
+}
+
+/// Cells per side of a window's guided table over `(α, β) ∈ (−π/2, π/2)²` (0.7° each, as the built-in sky's pixels).
+pub const GUIDED_CELLS: usize = 256;
+/// Supersamples per cell side when the table is built.
+const GUIDED_SUPERSAMPLES: usize = 3;
+
+/// A validated window portal.
+#[derive(Clone, Debug)]
+pub struct Window {
+    pub name: String,
+    /// Index of the `PortalDesc` it was built from in the scene's description.
+    pub desc_index: usize,
+    /// Probability of sampling the environment itself instead of the window.
+    pub alpha: f32,
+    /// The window, its normal pointing to its front (into the room).
+    pub polygon: ConvexPolygon,
+    /// The largest distance of a vertex from the first: scales the inside test's slack.
+    reach: f64,
+    frame: WindowFrame,
+    /// The environment's weight over the window's directions, when there is an image to follow.
+    guided: Option<GuidedTable>,
+}
+
+/// Axes of the window's parameterisation: `s`, `t` in its plane, `out = −normal` through it.
+#[derive(Clone, Copy, Debug)]
+struct WindowFrame {
+    centre: DVec3,
+    s: DVec3,
+    t: DVec3,
+    out: DVec3,
+    /// The window's bounding box in `(s, t)` about `centre`: `[s_min, s_max, t_min, t_max]`.
+    bounds: [f64; 4],
+}
+
+/// The piecewise-constant density over `(α, β)`: its summed-area table, whose bilinear
+/// interpolation is the density's exact integral from the corner `(−π/2, −π/2)`, and each
+/// column's running integral in `β`.
+#[derive(Clone, Debug)]
+struct GuidedTable {
+    /// `T[c·N + r]`, cell `c` in `α`, `r` in `β`.
+    weights: Vec<f64>,
+    /// `S[c·(N+1) + r]`: the integral of `T` over `α < edge(c)`, `β < edge(r)`.
+    summed: Vec<f64>,
+    /// Column `c`'s integral from `β = −π/2` to the edge below row `r`: `[c·(N+1) + r]`.
+    column_cdf: Vec<f64>,
+}
+
+/// The window's directions from one shading point, in `(α, β)`: a box, and the table's
+/// integral over it (the normaliser of the guided density there).
+#[derive(Clone, Copy, Debug)]
+pub struct GuidedBox {
+    alpha: [f64; 2],
+    beta: [f64; 2],
+    integral: f64,
+}
+
+/// Slack of the inside test, as a distance on the window's plane per unit of `t + reach`
+/// (as for area-light portals: a direction drawn near an edge is never judged outside).
+const EDGE_SLACK: f64 = 8.0 * f32::EPSILON as f64;
+
+const CELL: f64 = std::f64::consts::PI / GUIDED_CELLS as f64;
+
+impl GuidedBox {
+    /// `Z(x)`: the table's integral over the box (the environment's weight through the
+    /// window's bounding box, seen from x).
+    pub fn integral(&self) -> f64 {
+        self.integral
+    }
+}
+
+impl Window {
+    /// Validates `desc`, the `desc_index`-th portal of its scene. Its front is its winding's
+    /// side. With an image environment, builds the table the guided technique follows.
+    pub fn new(
+        desc: &PortalDesc,
+        desc_index: usize,
+        environment: Option<&Environment>,
+    ) -> Result<Window, WindowError> {
+        if !(0.0..=1.0).contains(&desc.alpha) {
+            return Err(WindowError::BadAlpha {
+                portal: desc.name.clone(),
+                alpha: desc.alpha,
+            });
+        }
+        let polygon = ConvexPolygon::from_triangles(&desc.world_triangles()).map_err(|error| {
+            WindowError::BadPolygon {
+                portal: desc.name.clone(),
+                error,
+            }
+        })?;
+        let v0 = polygon.vertices()[0].as_dvec3();
+        let reach = polygon
+            .vertices()
+            .iter()
+            .map(|v| v.as_dvec3().distance(v0))
+            .fold(0.0, f64::max);
+        let frame = WindowFrame::new(&polygon);
+        let guided = environment
+            .filter(|e| !e.is_constant())
+            .map(|e| GuidedTable::new(&frame, e));
+        Ok(Window {
+            name: desc.name.clone(),
+            desc_index,
+            alpha: desc.alpha,
+            polygon,
+            reach,
+            frame,
+            guided,
+        })
+    }
+
+    /// Whether `x` is strictly in front of the window (on the room's side).
+    pub fn in_front(&self, x: Vec3) -> bool {
+        self.polygon.plane().signed_distance(x) > 0.0
+    }
+
+    /// Whether the guided technique has a table (an image environment).
+    pub fn is_guided(&self) -> bool {
+        self.guided.is_some()
+    }
+
+    /// A direction through a uniform point of the window, with its solid-angle pdf.
+    pub fn sample_area(&self, x: Vec3, u: Vec2) -> Option<(Vec3, f32)> {
+        let v = self.polygon.sample_uniform_offset(x, u);
+        let dist = v.length();
+        let wi = v / dist;
+        let cos = self.polygon.normal().dot(wi).abs();
+        (dist > 0.0 && cos > 0.0).then(|| (wi, dist * dist / (self.polygon.area() * cos)))
+    }
+
+    /// The solid-angle pdf of [`Self::sample_area`]: `d² / (A |cos θ|)` through the window.
+    pub fn area_pdf(&self, x: Vec3, wi: Vec3) -> f32 {
+        match self.through(x, wi) {
+            Some((t, cos)) => (t * t / (f64::from(self.polygon.area()) * cos.abs())) as f32,
+            None => 0.0,
+        }
+    }
+
+    /// If the ray `x + t·wi` (`t > 0`) passes through the window: `t` and the cosine with its
+    /// normal. In f64 relative to `x`, with [`EDGE_SLACK`].
+    pub fn through(&self, x: Vec3, wi: Vec3) -> Option<(f64, f64)> {
+        let polygon = &self.polygon;
+        let vertices = polygon.vertices();
+        let (xd, w, n) = (x.as_dvec3(), wi.as_dvec3(), polygon.normal().as_dvec3());
+        let v0 = vertices[0].as_dvec3();
+        let height = n.dot(v0 - xd);
+        let cos = n.dot(w);
+        let t = height / cos;
+        if !(t > 0.0 && t.is_finite()) {
+            return None;
+        }
+        let slack = EDGE_SLACK * (t + self.reach);
+        let inside = cyclic_pairs(vertices).all(|(a, b)| {
+            let (a, b) = (a.as_dvec3(), b.as_dvec3());
+            let m = (a - xd).cross(b - a);
+            height.signum() * m.dot(w) * t >= -slack * m.length()
+        });
+        inside.then_some((t, cos))
+    }
+
+    /// The window seen from `x`, for sampling by solid angle (`None` edge-on).
+    pub fn solid_angle(&self, x: Vec3) -> Option<SphericalPolygon> {
+        SphericalPolygon::new(x, self.polygon.vertices())
+    }
+
+    /// The box of the window's directions from `x` in `(α, β)` and the table's integral over
+    /// it; `None` without a table, or for `x` not in front.
+    pub fn guided_box(&self, x: Vec3) -> Option<GuidedBox> {
+        let table = self.guided.as_ref()?;
+        let f = &self.frame;
+        let rel = x.as_dvec3() - f.centre;
+        let h = -rel.dot(f.out);
+        if !(h > 0.0 && h.is_finite()) {
+            return None;
+        }
+        let (xs, xt) = (rel.dot(f.s), rel.dot(f.t));
+        let [s0, s1, t0, t1] = f.bounds;
+        let alpha = [((s0 - xs) / h).atan(), ((s1 - xs) / h).atan()];
+        let beta = [((t0 - xt) / h).atan(), ((t1 - xt) / h).atan()];
+        let integral = table.box_integral(alpha, beta);
+        (integral > 0.0 && integral.is_finite()).then_some(GuidedBox {
+            alpha,
+            beta,
+            integral,
+        })
+    }
+
+    /// A direction through the window drawn proportional to the table within the box, with its
+    /// solid-angle pdf `T(α, β) / (Z · J(α, β))`. The box bounds the window; a draw that falls
+    /// in the box but outside the window is no sample (`None`), so the density is that of the
+    /// box restricted to the window (it integrates to the window's share of `Z`).
+    pub fn sample_guided(&self, b: &GuidedBox, x: Vec3, u: Vec2) -> Option<(Vec3, f32)> {
+        let table = self.guided.as_ref()?;
+        let (alpha, c) = table.sample_alpha(b, f64::from(u.x))?;
+        let (beta, r) = table.sample_beta(c, b.beta, f64::from(u.y))?;
+        let (ta, tb) = (alpha.tan(), beta.tan());
+        let f = &self.frame;
+        let wi = (ta * f.s + tb * f.t + f.out).normalize().as_vec3();
+        self.through(x, wi)?;
+        let pdf = table.weights[c * GUIDED_CELLS + r] / (b.integral * jacobian(ta, tb));
+        (pdf > 0.0 && pdf.is_finite()).then_some((wi, pdf as f32))
+    }
+
+    /// The solid-angle pdf of [`Self::sample_guided`] for `wi`: 0 unless it passes through the
+    /// window.
+    pub fn guided_pdf(&self, b: &GuidedBox, x: Vec3, wi: Vec3) -> f32 {
+        let Some(table) = self.guided.as_ref() else {
+            return 0.0;
+        };
+        if self.through(x, wi).is_none() {
+            return 0.0;
+        }
+        let f = &self.frame;
+        let w = wi.as_dvec3();
+        let dz = w.dot(f.out);
+        if dz <= 0.0 {
+            return 0.0;
+        }
+        let (ta, tb) = (w.dot(f.s) / dz, w.dot(f.t) / dz);
+        // The window lies inside the box: a direction through it that rounding puts a hair
+        // outside takes the box's edge cell.
+        let alpha = ta.atan().clamp(b.alpha[0], b.alpha[1]);
+        let beta = tb.atan().clamp(b.beta[0], b.beta[1]);
+        let weight = table.weights[cell(alpha) * GUIDED_CELLS + cell(beta)];
+        (weight / (b.integral * jacobian(ta, tb))) as f32
+    }
+}
+
+/// `dω / (dα dβ)` at `a = tan α`, `b = tan β`: the gnomonic map's `(1 + a² + b²)^(−3/2)` times
+/// `da/dα · db/dβ = (1 + a²)(1 + b²)`.
+fn jacobian(a: f64, b: f64) -> f64 {
+    let r2 = 1.0 + a * a + b * b;
+    (1.0 + a * a) * (1.0 + b * b) / (r2 * r2.sqrt())
+}
+
+/// The cell of angle `a` in `(−π/2, π/2)`.
+fn cell(a: f64) -> usize {
+    (((a + FRAC_PI_2) / CELL).max(0.0) as usize).min(GUIDED_CELLS - 1)
+}
+
+/// The lower edge of cell `k`.
+fn edge(k: usize) -> f64 {
+    -FRAC_PI_2 + k as f64 * CELL
+}
+
+impl WindowFrame {
+    /// `s` along the edge whose direction gives the smallest bounding box (for a convex
+    /// polygon, the smallest enclosing rectangle has a side on an edge): a rectangle's box is
+    /// the rectangle itself.
+    fn new(polygon: &ConvexPolygon) -> Self {
+        let n = polygon.normal().as_dvec3();
+        let centre = polygon.centroid().as_dvec3();
+        let out = -n;
+        let vertices: Vec<DVec3> = polygon.vertices().iter().map(|v| v.as_dvec3()).collect();
+        let mut best: Option<(f64, WindowFrame)> = None;
+        for (a, b) in cyclic_pairs(&vertices) {
+            let Some(s) = (b - a).try_normalize() else {
+                continue;
+            };
+            let t = out.cross(s);
+            let mut bounds = [
+                f64::INFINITY,
+                f64::NEG_INFINITY,
+                f64::INFINITY,
+                f64::NEG_INFINITY,
+            ];
+            for v in &vertices {
+                let (ps, pt) = ((v - centre).dot(s), (v - centre).dot(t));
+                bounds = [
+                    bounds[0].min(ps),
+                    bounds[1].max(ps),
+                    bounds[2].min(pt),
+                    bounds[3].max(pt),
+                ];
+            }
+            let area = (bounds[1] - bounds[0]) * (bounds[3] - bounds[2]);
+            if best.as_ref().is_none_or(|(a, _)| area < *a) {
+                best = Some((
+                    area,
+                    WindowFrame {
+                        centre,
+                        s,
+                        t,
+                        out,
+                        bounds,
+                    },
+                ));
+            }
+        }
+        // A validated polygon has edges, so `best` is set; the fallback keeps this total.
+        best.map(|(_, f)| f).unwrap_or_else(|| {
+            let s = n.any_orthonormal_vector();
+            WindowFrame {
+                centre,
+                s,
+                t: out.cross(s),
+                out,
+                bounds: [0.0; 4],
+            }
+        })
+    }
+
+    /// The unit direction at `(α, β)`.
+    fn direction(&self, alpha: f64, beta: f64) -> DVec3 {
+        (alpha.tan() * self.s + beta.tan() * self.t + self.out).normalize()
+    }
+}
+
+impl GuidedTable {
+    /// `T` per cell: the environment's sampling weight times the Jacobian, averaged over
+    /// supersamples, floored at a millionth of the mean so that every direction through the
+    /// window can be drawn.
+    fn new(frame: &WindowFrame, environment: &Environment) -> Self {
+        let n = GUIDED_CELLS;
+        let k = GUIDED_SUPERSAMPLES;
+        let mut weights = vec![0.0; n * n];
+        for c in 0..n {
+            for r in 0..n {
+                let mut sum = 0.0;
+                for i in 0..k {
+                    for j in 0..k {
+                        let alpha = edge(c) + (i as f64 + 0.5) / k as f64 * CELL;
+                        let beta = edge(r) + (j as f64 + 0.5) / k as f64 * CELL;
+                        let w = frame.direction(alpha, beta).as_vec3();
+                        sum += f64::from(environment.sampling_weight(w))
+                            * jacobian(alpha.tan(), beta.tan());
+                    }
+                }
+                weights[c * n + r] = sum / (k * k) as f64;
+            }
+        }
+        let mean = weights.iter().sum::<f64>() / weights.len() as f64;
+        let floor = if mean > 0.0 { 1e-6 * mean } else { 1.0 };
+        for w in &mut weights {
+            *w = w.max(floor);
+        }
+        let m = n + 1;
+        let mut column_cdf = vec![0.0; n * m];
+        let mut summed = vec![0.0; m * m];
+        for c in 0..n {
+            for r in 0..n {
+                let mass = weights[c * n + r] * CELL;
+                column_cdf[c * m + r + 1] = column_cdf[c * m + r] + mass;
+                summed[(c + 1) * m + r + 1] =
+                    summed[c * m + r + 1] + column_cdf[c * m + r + 1] * CELL;
+            }
+        }
+        GuidedTable {
+            weights,
+            summed,
+            column_cdf,
+        }
+    }
+
+    /// The integral of `T` over `[−π/2, α] × [−π/2, β]`: bilinear in the summed-area table,
+    /// which is exact for a piecewise-constant density.
+    fn integral_to(&self, alpha: f64, beta: f64) -> f64 {
+        let (c, fa) = locate(alpha);
+        let (r, fb) = locate(beta);
+        let m = GUIDED_CELLS + 1;
+        let s = |i: usize, j: usize| self.summed[i * m + j];
+        let (s00, s10, s01, s11) = (s(c, r), s(c + 1, r), s(c, r + 1), s(c + 1, r + 1));
+        s00 + fa * (s10 - s00) + fb * (s01 - s00) + fa * fb * (s11 - s10 - s01 + s00)
+    }
+
+    /// The marginal CDF in `α` over the box's `β` range, from `−π/2`.
+    fn marginal_to(&self, alpha: f64, beta: [f64; 2]) -> f64 {
+        self.integral_to(alpha, beta[1]) - self.integral_to(alpha, beta[0])
+    }
+
+    /// `Z`: the table's integral over the box.
+    fn box_integral(&self, alpha: [f64; 2], beta: [f64; 2]) -> f64 {
+        self.marginal_to(alpha[1], beta) - self.marginal_to(alpha[0], beta)
+    }
+
+    /// Column `c`'s integral from `−π/2` to `beta` (exact: linear within a cell).
+    fn column_integral_to(&self, c: usize, beta: f64) -> f64 {
+        let (r, f) = locate(beta);
+        self.column_cdf[c * (GUIDED_CELLS + 1) + r] + self.weights[c * GUIDED_CELLS + r] * f * CELL
+    }
+
+    /// Inverts the marginal CDF in `α` (piecewise linear): the angle and its column. A binary
+    /// search over the column edges inside the box, then a linear step within the column.
+    fn sample_alpha(&self, b: &GuidedBox, u: f64) -> Option<(f64, usize)> {
+        let base = self.marginal_to(b.alpha[0], b.beta);
+        let target = base + u * b.integral;
+        let (c0, c1) = (cell(b.alpha[0]), cell(b.alpha[1]));
+        // The first column whose upper end reaches past the target.
+        let (mut lo, mut hi) = (c0, c1);
+        while lo < hi {
+            let mid = (lo + hi) / 2;
+            if self.marginal_to(edge(mid + 1).min(b.alpha[1]), b.beta) > target {
+                hi = mid;
+            } else {
+                lo = mid + 1;
+            }
+        }
+        let c = lo;
+        let start = b.alpha[0].max(edge(c));
+        let end = b.alpha[1].min(edge(c + 1)).max(start);
+        let at_start = self.marginal_to(start, b.beta);
+        let density = (self.marginal_to(end, b.beta) - at_start) / (end - start);
+        if !(density > 0.0 && density.is_finite()) {
+            return None;
+        }
+        Some((((target - at_start) / density + start).clamp(start, end), c))
+    }
+
+    /// Inverts column `c`'s CDF in `β` within `[β0, β1]`: the angle and its row.
+    fn sample_beta(&self, c: usize, beta: [f64; 2], u: f64) -> Option<(f64, usize)> {
+        let m = GUIDED_CELLS + 1;
+        let (f0, f1) = (
+            self.column_integral_to(c, beta[0]),
+            self.column_integral_to(c, beta[1]),
+        );
+        let target = f0 + u * (f1 - f0);
+        let (r0, r1) = (cell(beta[0]), cell(beta[1]));
+        // The first row whose upper edge's running integral passes the target.
+        let ends = &self.column_cdf[c * m + r0 + 1..=c * m + r1 + 1];
+        let r = (r0 + ends.partition_point(|&f| f <= target)).min(r1);
+        let weight = self.weights[c * GUIDED_CELLS + r];
+        let start = beta[0].max(edge(r));
+        let end = beta[1].min(edge(r + 1)).max(start);
+        let at_edge = self.column_cdf[c * m + r];
+        Some(((edge(r) + (target - at_edge) / weight).clamp(start, end), r))
+    }
+}
+
+/// The cell of angle `a` and the fraction of it below `a`.
+fn locate(a: f64) -> (usize, f64) {
+    let x = (a + FRAC_PI_2) / CELL;
+    let c = (x.max(0.0) as usize).min(GUIDED_CELLS - 1);
+    (c, (x - c as f64).clamp(0.0, 1.0))
+}

@@ -1,0 +1,385 @@
+//! The environment light (`docs/method.md` §9): its sampler's pdf integrates to 1, sampled
+//! pdf equals evaluated pdf, samples pass a chi-square test against the image (and a wrong
+//! image is rejected), a constant environment gives irradiance π·L on an open plane through
+//! the full renderer (and 1.03 × that is rejected); `.hdr` and `.exr` files load, broken ones
+//! give errors naming the file; scene extras round-trip through glTF. Run in release.
+
+mod common;
+
+use glam::{Vec2, Vec3};
+use portalview::asset::builtin;
+use portalview::asset::desc::{MaterialDesc, SceneDesc};
+use portalview::asset::environment::{
+    EnvImage, EnvMap, EnvironmentDesc, hdr_bytes, load_image, map_from_text, with_overrides,
+};
+use portalview::asset::gltf;
+use portalview::light::Strategy;
+use portalview::light::environment::Environment;
+use portalview::sampling::Rng;
+use portalview::scene::Scene;
+use std::f64::consts::PI;
+use std::path::PathBuf;
+use std::sync::Arc;
+
+/// A small image with a bright spot, zeros and a gradient: every path of the sampler.
+fn test_image() -> EnvImage {
+    let (width, height) = (48u32, 24u32);
+    let mut rng = Rng::new(5, 6);
+    let pixels = (0..width * height)
+        .map(|k| {
+            let (i, j) = (k % width, k / width);
+            if (i, j) == (30, 7) {
+                Vec3::new(400.0, 300.0, 200.0)
+            } else if j == 20 && i < 12 {
+                Vec3::ZERO
+            } else {
+                Vec3::new(rng.uniform(), rng.uniform(), rng.uniform()) * (1.0 + j as f32 / 8.0)
+            }
+        })
+        .collect();
+    EnvImage {
+        width,
+        height,
+        pixels,
+    }
+}
+
+fn image_env(image: EnvImage, rotation_degrees: f32) -> (EnvironmentDesc, Environment) {
+    let desc = EnvironmentDesc {
+        map: EnvMap::Image {
+            file: None,
+            image: Arc::new(image),
+        },
+        strength: 2.0,
+        rotation_degrees,
+    };
+    let env = Environment::new(&desc, 1.0);
+    (desc, env)
+}
+
+fn uniform_sphere(u: Vec2) -> Vec3 {
+    let z = 1.0 - 2.0 * u.x;
+    let r = (1.0 - z * z).max(0.0).sqrt();
+    let (s, c) = (std::f32::consts::TAU * u.y).sin_cos();
+    Vec3::new(r * c, z, r * s)
+}
+
+/// `∫ pdf dω` by uniform directions on the sphere: 1 within 4 standard errors, for the test
+/// image (turned by 37°), the built-in sky and a constant.
+#[test]
+fn environment_pdf_integrates_to_one() {
+    let envs = [
+        image_env(test_image(), 37.0).1,
+        image_env(builtin::sky_image(), 0.0).1,
+        Environment::new(&EnvironmentDesc::constant(Vec3::ONE), 1.0),
+    ];
+    for (k, env) in envs.iter().enumerate() {
+        let mut rng = Rng::new(11, k as u64);
+        let values: Vec<f64> = (0..400_000)
+            .map(|_| 4.0 * PI * f64::from(env.pdf(uniform_sphere(rng.uniform2()))))
+            .collect();
+        let (mean, se) = common::mean_and_se(&values);
+        // The constant's pdf is exact, so only f32 rounding is left.
+        assert!(
+            (mean - 1.0).abs() <= 4.0 * se + 1e-6,
+            "env {k}: ∫pdf = {mean} ± {se}"
+        );
+        assert!(se < 0.05, "env {k}: too noisy to tell ({se})");
+    }
+}
+
+/// A drawn direction's pdf is the pdf evaluated for it (up to f32 rounding of the direction
+/// that moves it across a pixel edge, which must stay rare); a sample never has pdf 0.
+#[test]
+fn environment_sampled_pdf_equals_evaluated_pdf() {
+    for (k, env) in [
+        image_env(test_image(), 37.0).1,
+        image_env(builtin::sky_image(), -20.0).1,
+        Environment::new(&EnvironmentDesc::constant(Vec3::ONE), 1.0),
+    ]
+    .iter()
+    .enumerate()
+    {
+        let mut rng = Rng::new(12, k as u64);
+        let n = 200_000;
+        let mut differing = 0;
+        for _ in 0..n {
+            let Some((w, pdf)) = env.sample(rng.uniform2()) else {
+                continue;
+            };
+            assert!((w.length() - 1.0).abs() < 1e-5);
+            let evaluated = env.pdf(w);
+            assert!(evaluated > 0.0, "env {k}: a sample at {w} has pdf 0");
+            if (pdf - evaluated).abs() > 1e-3 * evaluated {
+                differing += 1;
+            }
+        }
+        assert!(
+            differing * 10_000 <= n,
+            "env {k}: {differing} of {n} differ"
+        );
+    }
+}
+
+/// The pixel of direction `w` in an image turned by `rotation_degrees`, by Blender's mapping
+/// (written out here independently of the renderer's code).
+fn pixel(w: Vec3, rotation_degrees: f32, width: u32, height: u32) -> (u32, u32) {
+    let (s, c) = rotation_degrees.to_radians().sin_cos();
+    // A Mapping node's Z rotation in Blender turns the lookup vector by +rotation about the
+    // up axis (glTF's +Y).
+    let m = Vec3::new(c * w.x + s * w.z, w.y, -s * w.x + c * w.z);
+    let u = 0.5 + m.z.atan2(m.x) / std::f32::consts::TAU;
+    let v = m.y.clamp(-1.0, 1.0).acos() / std::f32::consts::PI;
+    (
+        ((u * width as f32) as u32).min(width - 1),
+        ((v * height as f32) as u32).min(height - 1),
+    )
+}
+
+/// Chi-square of `samples` against each pixel's probability taken from the image itself:
+/// `mean channel × sin θ` at the row's centre, normalised (pixels with under 5 expected samples
+/// are pooled). Returns the statistic and its critical value at significance 1e-3.
+fn chi_square_against_image(
+    image: &EnvImage,
+    rotation_degrees: f32,
+    samples: &[Vec3],
+) -> (f64, f64) {
+    let (w, h) = (image.width, image.height);
+    let mut weights = vec![0.0f64; (w * h) as usize];
+    for j in 0..h {
+        let sin = (PI * (j as f64 + 0.5) / h as f64).sin();
+        for i in 0..w {
+            let p = image.pixels[(j * w + i) as usize];
+            weights[(j * w + i) as usize] = f64::from(p.x + p.y + p.z) / 3.0 * sin;
+        }
+    }
+    let total: f64 = weights.iter().sum();
+    let mut counts = vec![0.0f64; weights.len()];
+    for &s in samples {
+        let (i, j) = pixel(s, rotation_degrees, w, h);
+        counts[(j * w + i) as usize] += 1.0;
+    }
+    let n = samples.len() as f64;
+    let (mut chi2, mut dof) = (0.0, 0usize);
+    let (mut pooled_expected, mut pooled_count) = (0.0, 0.0);
+    for (weight, count) in weights.iter().zip(&counts) {
+        let expected = n * weight / total;
+        if expected < 5.0 {
+            pooled_expected += expected;
+            pooled_count += count;
+            continue;
+        }
+        chi2 += (count - expected).powi(2) / expected;
+        dof += 1;
+    }
+    if pooled_expected > 0.0 {
+        chi2 += (pooled_count - pooled_expected).powi(2) / pooled_expected.max(1.0);
+        dof += 1;
+    }
+    let k = (dof - 1) as f64;
+    let z = 3.090;
+    (
+        chi2,
+        k * (1.0 - 2.0 / (9.0 * k) + z * (2.0 / (9.0 * k)).sqrt()).powi(3),
+    )
+}
+
+/// Samples of the environment pass a chi-square test against the image they came from, and
+/// fail it against the same image with one column's pixels doubled (the negative case).
+#[test]
+fn environment_samples_pass_chi_square_against_the_image() {
+    let rotation = 37.0;
+    let image = test_image();
+    let (_, env) = image_env(image.clone(), rotation);
+    let mut rng = Rng::new(13, 14);
+    let samples: Vec<Vec3> = (0..300_000)
+        .filter_map(|_| env.sample(rng.uniform2()).map(|s| s.0))
+        .collect();
+    let (chi2, critical) = chi_square_against_image(&image, rotation, &samples);
+    assert!(chi2 <= critical, "chi² {chi2} > {critical}");
+    let mut wrong = image.clone();
+    for j in 0..wrong.height {
+        let k = (j * wrong.width + 5) as usize;
+        wrong.pixels[k] *= 2.0;
+    }
+    let (chi2, critical) = chi_square_against_image(&wrong, rotation, &samples);
+    assert!(
+        chi2 > critical,
+        "a doubled column went undetected: {chi2} ≤ {critical}"
+    );
+    // And the rotation matters: the unturned image rejects these samples.
+    let (chi2, critical) = chi_square_against_image(&image, 0.0, &samples);
+    assert!(chi2 > critical, "the rotation went undetected");
+}
+
+/// A large white Lambertian floor under a constant environment of radiance L: irradiance π·L,
+/// so the floor reflects albedo · L. The full renderer (environment sampling, MIS with BSDF
+/// sampling, which finds the sky too) matches within 4 standard errors at several points, for
+/// every strategy; 1.03 × the answer is rejected (negative case).
+#[test]
+fn constant_environment_gives_pi_l_on_an_open_plane() {
+    let l = 0.8;
+    let desc = SceneDesc {
+        name: "open plane".into(),
+        materials: vec![MaterialDesc::diffuse("floor", Vec3::ONE)],
+        meshes: vec![common::flat(
+            "floor",
+            0,
+            &[vec![
+                Vec3::new(-500.0, 0.0, -500.0),
+                Vec3::new(-500.0, 0.0, 500.0),
+                Vec3::new(500.0, 0.0, 500.0),
+                Vec3::new(500.0, 0.0, -500.0),
+            ]],
+        )],
+        environment: Some(EnvironmentDesc {
+            strength: 2.0,
+            ..EnvironmentDesc::constant(Vec3::splat(l / 2.0))
+        }),
+        camera: common::camera(Vec3::new(0.0, 3.0, 3.0), Vec3::ZERO),
+        ..SceneDesc::default()
+    };
+    let albedo = 0.7;
+    let scene = common::lambertian(Scene::from_desc(desc, "open plane").unwrap(), 0, albedo);
+    let expected = f64::from(albedo * l);
+    let mut detects = false;
+    for (k, strategy) in Strategy::ALL.into_iter().enumerate() {
+        for (m, x) in [Vec3::ZERO, Vec3::new(3.0, 0.0, -7.0)]
+            .into_iter()
+            .enumerate()
+        {
+            let seed = 10 * k as u64 + m as u64;
+            let (mean, se) = common::floor_radiance(&scene, (strategy, None), x, 20_000, seed);
+            assert!(
+                (mean - expected).abs() <= 4.0 * se,
+                "{}: {mean} ± {se} vs {expected}",
+                strategy.name()
+            );
+            detects |= (mean - 1.03 * expected).abs() > 4.0 * se;
+        }
+    }
+    assert!(detects, "a 3% error is never detected");
+}
+
+fn temp_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("portalview-env-{}-{name}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// An `.hdr` (RGBE: 8-bit mantissas, so within 1%) and an `.exr` (f32, exact) load as the
+/// image written; broken, missing and unsupported files are errors that name the file.
+#[test]
+fn hdr_and_exr_load_and_broken_files_name_themselves() {
+    let dir = temp_dir("load");
+    let image = test_image();
+    let hdr = dir.join("sky.hdr");
+    std::fs::write(&hdr, hdr_bytes(&image).unwrap()).unwrap();
+    let loaded = load_image(&hdr).unwrap();
+    assert_eq!((loaded.width, loaded.height), (image.width, image.height));
+    for (a, b) in loaded.pixels.iter().zip(&image.pixels) {
+        assert!(
+            (*a - *b).abs().max_element() <= 0.01 * b.max_element() + 1e-6,
+            "{a} vs {b}"
+        );
+    }
+    let exr = dir.join("sky.exr");
+    let bytes = portalview::io::exr_bytes(image.width, image.height, &image.pixels).unwrap();
+    std::fs::write(&exr, bytes).unwrap();
+    assert_eq!(load_image(&exr).unwrap(), image);
+    // Through the text a scene or the command line gives, relative to a folder.
+    match map_from_text("sky.exr", Some(&dir)).unwrap() {
+        EnvMap::Image { image: loaded, .. } => assert_eq!(*loaded, image),
+        other => panic!("{other:?}"),
+    }
+    assert_eq!(
+        map_from_text("0.5, 1, 2", None).unwrap(),
+        EnvMap::Constant(Vec3::new(0.5, 1.0, 2.0))
+    );
+    assert!(map_from_text("1,-1,2", None).is_err());
+
+    let truncated_hdr = dir.join("truncated.hdr");
+    let bytes = hdr_bytes(&image).unwrap();
+    std::fs::write(&truncated_hdr, &bytes[..bytes.len() / 2]).unwrap();
+    let garbage_exr = dir.join("garbage.exr");
+    std::fs::write(&garbage_exr, b"not an exr at all").unwrap();
+    let missing = dir.join("missing.hdr");
+    let unsupported = dir.join("sky.png");
+    std::fs::write(&unsupported, b"png").unwrap();
+    for file in [&truncated_hdr, &garbage_exr, &missing, &unsupported] {
+        let error = load_image(file).unwrap_err().to_string();
+        assert!(
+            error.contains(&file.display().to_string()),
+            "error does not name the file: {error}"
+        );
+    }
+    // Command-line overrides: numbers alone need an environment.
+    assert!(with_overrides(None, None, Some(2.0), None).is_err());
+    let over = with_overrides(None, Some("1,1,1"), Some(3.0), Some(-45.0))
+        .unwrap()
+        .unwrap();
+    assert_eq!((over.strength, over.rotation_degrees), (3.0, -45.0));
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// A scene's environment survives export and load: a constant as `[r, g, b]`, the built-in
+/// sky as an image written beside the `.glb`, with strength and rotation; extras that are not
+/// an environment are errors naming the file and the field.
+#[test]
+fn environment_round_trips_through_gltf_scene_extras() {
+    let dir = temp_dir("gltf");
+    let mut desc = builtin::desc("window").unwrap();
+    desc.environment = Some(EnvironmentDesc {
+        strength: 1.5,
+        rotation_degrees: 30.0,
+        ..desc.environment.clone().unwrap()
+    });
+    let glb = dir.join("room.glb");
+    gltf::export_glb(&desc, &glb).unwrap();
+    assert!(dir.join("room_environment.hdr").exists());
+    let loaded = gltf::load_gltf(&glb).unwrap();
+    let env = loaded.environment.clone().unwrap();
+    assert_eq!((env.strength, env.rotation_degrees), (1.5, 30.0));
+    let EnvMap::Image { image, .. } = &env.map else {
+        panic!("not an image: {:?}", env.map);
+    };
+    assert_eq!(image.width, builtin::sky_image().width);
+    assert_eq!(loaded.portals.len(), 1);
+    assert!(loaded.portals[0].is_window());
+    Scene::load(&glb).unwrap();
+
+    // Saving the environment rewrites only the scene's extras.
+    gltf::save_environment(
+        &glb,
+        Some(&EnvironmentDesc::constant(Vec3::new(0.1, 0.2, 0.3))),
+    )
+    .unwrap();
+    let saved = gltf::load_gltf(&glb).unwrap();
+    assert_eq!(
+        saved.environment.unwrap().map,
+        EnvMap::Constant(Vec3::new(0.1, 0.2, 0.3))
+    );
+    assert_eq!(saved.meshes, loaded.meshes);
+    gltf::save_environment(&glb, None).unwrap();
+    assert!(gltf::load_gltf(&glb).unwrap().environment.is_none());
+
+    // A broken reference: the file and the field are named.
+    let bad = dir.join("bad.gltf");
+    let text = r#"{"asset":{"version":"2.0"},"scene":0,"scenes":[{"nodes":[],"extras":{"environment":"nowhere.hdr"}}]}"#;
+    std::fs::write(&bad, text).unwrap();
+    let error = gltf::load_gltf(&bad).unwrap_err().to_string();
+    assert!(
+        error.contains("bad.gltf") && error.contains("extras.environment"),
+        "{error}"
+    );
+    assert!(error.contains("nowhere.hdr"), "{error}");
+    let text = r#"{"asset":{"version":"2.0"},"scene":0,"scenes":[{"nodes":[],"extras":{"environment":[1,2],"environment_strength":1}}]}"#;
+    std::fs::write(&bad, text).unwrap();
+    let error = gltf::load_gltf(&bad).unwrap_err().to_string();
+    assert!(error.contains("extras.environment"), "{error}");
+    let text = r#"{"asset":{"version":"2.0"},"scene":0,"scenes":[{"nodes":[],"extras":{"environment":[1,2,3],"environment_strength":"x"}}]}"#;
+    std::fs::write(&bad, text).unwrap();
+    let error = gltf::load_gltf(&bad).unwrap_err().to_string();
+    assert!(error.contains("extras.environment_strength"), "{error}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
