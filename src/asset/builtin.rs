@@ -1,20 +1,30 @@
 //! Built-in scenes, made in code so that the viewer and the tests need no files:
-//! `lampshade` (the thesis's Figure 1), `fig8a`, `fig8b`, `fig8c` (its Figure 8), and `window`,
-//! `windows2` (a room lit by the sky through window portals).
+//! `lampshade` (the thesis's Figure 1), `fig8a`, `fig8b`, `fig8c` (its Figure 8), `window`,
+//! `windows2` (a room lit by the sky through window portals), and `desklamp` (an artist's scene
+//! as Blender exports it: textures, a normal map, a point lamp and a bulb mesh behind portals).
 
 use glam::{Vec2, Vec3};
 use std::collections::HashMap;
 use std::sync::Arc;
 
 use crate::asset::desc::{
-    MaterialDesc, MaterialTextures, MeshDesc, NormalTexture, PortalDesc, SceneDesc,
+    LampDesc, LampKind, MaterialDesc, MaterialTextures, MeshDesc, NormalTexture, PortalDesc,
+    SceneDesc,
 };
 use crate::asset::environment::{ENVIRONMENT_TARGET, EnvImage, EnvMap, EnvironmentDesc};
 use crate::asset::texture::{Image, Sampler, TextureRef};
 use crate::camera::Camera;
 
 /// Names of the built-in scenes.
-pub const NAMES: [&str; 6] = ["lampshade", "fig8a", "fig8b", "fig8c", "window", "windows2"];
+pub const NAMES: [&str; 7] = [
+    "lampshade",
+    "fig8a",
+    "fig8b",
+    "fig8c",
+    "window",
+    "windows2",
+    "desklamp",
+];
 
 /// The built-in scene `name`, if there is one.
 pub fn desc(name: &str) -> Option<SceneDesc> {
@@ -25,6 +35,7 @@ pub fn desc(name: &str) -> Option<SceneDesc> {
         "fig8c" => Some(figure8(Figure8::C)),
         "window" => Some(room_with_windows("window", false)),
         "windows2" => Some(room_with_windows("windows2", true)),
+        "desklamp" => Some(desklamp()),
         _ => None,
     }
 }
@@ -170,25 +181,31 @@ pub fn with_test_textures(mut desc: SceneDesc) -> SceneDesc {
         };
     }
     for mesh in &mut desc.meshes {
-        // Projected along the normal's largest axis, a texture every metre.
-        mesh.texcoords[0] = mesh
-            .positions
-            .iter()
-            .zip(&mesh.normals)
-            .map(|(p, n)| {
-                let a = n.abs();
-                if a.y >= a.x && a.y >= a.z {
-                    Vec2::new(p.x, p.z)
-                } else if a.x >= a.z {
-                    Vec2::new(p.z, p.y)
-                } else {
-                    Vec2::new(p.x, p.y)
-                }
-            })
-            .collect();
+        // A texture every metre.
+        mesh.texcoords[0] = projected_uvs(mesh, 1.0);
     }
     desc.name.push_str("-textured");
     desc
+}
+
+/// Texture coordinates projected from world space along each vertex normal's largest axis,
+/// `per_metre` texture repeats a metre (so flat-shaded boxes get a seamless texture per face).
+fn projected_uvs(mesh: &MeshDesc, per_metre: f32) -> Vec<Vec2> {
+    mesh.positions
+        .iter()
+        .zip(&mesh.normals)
+        .map(|(p, n)| {
+            let a = n.abs();
+            let uv = if a.y >= a.x && a.y >= a.z {
+                Vec2::new(p.x, p.z)
+            } else if a.x >= a.z {
+                Vec2::new(p.z, p.y)
+            } else {
+                Vec2::new(p.x, p.y)
+            };
+            uv * per_metre
+        })
+        .collect()
 }
 
 #[derive(Clone, Copy)]
@@ -677,5 +694,340 @@ fn room_with_windows(name: &str, two: bool) -> SceneDesc {
         rotation_degrees: 0.0,
     });
     b.camera(Vec3::new(1.5, 1.5, 1.85), Vec3::new(-0.4, 0.7, -0.6), 62.0);
+    b.desc
+}
+
+/// Adds an `n`×`n` image of texels `f(x, y)` to the scene; a reference to it with the default
+/// (repeating, bilinear) sampler on `TEXCOORD_0`.
+fn procedural_texture(
+    desc: &mut SceneDesc,
+    name: &str,
+    n: u32,
+    f: impl Fn(u32, u32) -> [u8; 4],
+) -> Option<TextureRef> {
+    let texels = (0..n * n).map(|i| f(i % n, i / n)).collect();
+    let image = Image::new(name.to_owned(), n, n, texels)?;
+    desc.images.push(Arc::new(image));
+    Some(TextureRef {
+        image: desc.images.len() - 1,
+        sampler: Sampler::default(),
+        tex_coord: 0,
+        transform: None,
+    })
+}
+
+/// A small integer hash to [0, 1), for procedural texture variation.
+fn hash01(k: u32) -> f32 {
+    let mut h = k.wrapping_mul(0x9E37_79B9) ^ 0x85EB_CA6B;
+    h ^= h >> 15;
+    h = h.wrapping_mul(0x2C1B_3C6D);
+    h ^= h >> 12;
+    (h & 0xFFFF) as f32 / 65536.0
+}
+
+/// An sRGB byte of a linear value in [0, 1].
+fn srgb_byte(linear: f32) -> u8 {
+    let c = linear.clamp(0.0, 1.0);
+    let s = if c <= 0.003_130_8 {
+        12.92 * c
+    } else {
+        1.055 * c.powf(1.0 / 2.4) - 0.055
+    };
+    (s * 255.0).round() as u8
+}
+
+/// A UV sphere: `segments` around, `rings` from pole to pole (one vertex at each pole, so
+/// `segments · (rings − 1) + 2` vertices), smooth normals pointing out.
+fn uv_sphere(
+    node: &str,
+    material: usize,
+    center: Vec3,
+    radius: f32,
+    segments: u32,
+    rings: u32,
+) -> MeshDesc {
+    let mut mesh = MeshDesc {
+        node_name: node.to_owned(),
+        material,
+        ..MeshDesc::default()
+    };
+    let mut vertex = |d: Vec3| {
+        mesh.positions.push(center + radius * d);
+        mesh.normals.push(d);
+    };
+    vertex(Vec3::Y);
+    for r in 1..rings {
+        let theta = std::f32::consts::PI * r as f32 / rings as f32;
+        for s in 0..segments {
+            let phi = std::f32::consts::TAU * s as f32 / segments as f32;
+            vertex(Vec3::new(
+                theta.sin() * phi.cos(),
+                theta.cos(),
+                theta.sin() * phi.sin(),
+            ));
+        }
+    }
+    vertex(Vec3::NEG_Y);
+    let south = segments * (rings - 1) + 1;
+    // Ring r (1 ..= rings − 1), segment s.
+    let at = |r: u32, s: u32| 1 + (r - 1) * segments + s % segments;
+    // Counter-clockwise seen from outside (y up, φ turning from +x towards +z).
+    for s in 0..segments {
+        mesh.indices.push([0, at(1, s + 1), at(1, s)]);
+        mesh.indices
+            .push([south, at(rings - 1, s), at(rings - 1, s + 1)]);
+    }
+    for r in 1..rings - 1 {
+        for s in 0..segments {
+            let (a, b, c, d) = (at(r, s), at(r, s + 1), at(r + 1, s + 1), at(r + 1, s));
+            mesh.indices.push([a, b, c]);
+            mesh.indices.push([a, c, d]);
+        }
+    }
+    mesh
+}
+
+/// An artist's scene, made as Blender's glTF exporter writes one: a desk in a room corner, lit by
+/// a desk lamp whose bulb (a UV-sphere emissive mesh) hides in a conical shade open at both ends,
+/// one portal on each opening, and by a ceiling point lamp (`KHR_lights_punctual`). Textures: a
+/// wood-plank floor, a wood desk top, a plaster wall with a normal map (tangents generated on
+/// load), a checkered block with a roughness/metal texture. Matte materials carry
+/// `KHR_materials_specular` with a black specular colour, as Blender writes a Principled BSDF of
+/// Specular 0: pure Lambert.
+fn desklamp() -> SceneDesc {
+    let mut b = Builder::new("desklamp");
+    let d = &mut b.desc;
+    // Floor planks 0.2 m wide (rows of 32 texels): a tint per plank, grain along the plank.
+    let planks = procedural_texture(d, "floor_planks", 256, |x, y| {
+        let plank = y / 32;
+        let seam = y % 32 == 0 || (x + 97 * plank) % 256 < 2;
+        let tint = 0.8 + 0.4 * hash01(plank * 7 + 3);
+        let t = x as f32 / 256.0 + hash01(plank) * 5.0;
+        let grain = 0.85 + 0.15 * (40.0 * t + 3.0 * (y as f32 * 0.3).sin()).sin();
+        let k = if seam { 0.35 } else { tint * grain };
+        [
+            srgb_byte(0.42 * k),
+            srgb_byte(0.25 * k),
+            srgb_byte(0.13 * k),
+            255,
+        ]
+    });
+    // Desk top: a darker, finer grain.
+    let desk_wood = procedural_texture(d, "desk_wood", 256, |x, y| {
+        let t = y as f32 / 256.0 * std::f32::consts::TAU;
+        let ring = (30.0 * t + 2.5 * (x as f32 / 256.0 * std::f32::consts::TAU * 2.0).sin()).sin();
+        let k = 0.8 + 0.2 * ring;
+        [
+            srgb_byte(0.2 * k),
+            srgb_byte(0.1 * k),
+            srgb_byte(0.05 * k),
+            255,
+        ]
+    });
+    // Plaster: the normal of a rough height field (sums of sines), tilted up to about 25°.
+    let plaster = procedural_texture(d, "wall_plaster_normal", 256, |x, y| {
+        let (s, t) = (
+            x as f32 / 256.0 * std::f32::consts::TAU,
+            y as f32 / 256.0 * std::f32::consts::TAU,
+        );
+        let dx = 0.25 * (5.0 * s + 2.0 * (3.0 * t).sin()).cos() + 0.15 * (13.0 * s + 7.0 * t).cos();
+        let dy = 0.25 * (4.0 * t + 2.0 * (2.0 * s).sin()).cos() + 0.15 * (11.0 * t - 6.0 * s).cos();
+        let n = Vec3::new(-dx, -dy, 1.0).normalize();
+        let encode = |c: f32| ((c * 0.5 + 0.5) * 255.0).round() as u8;
+        [encode(n.x), encode(n.y), encode(n.z), 255]
+    });
+    // The block: an 8 × 8 checkerboard of red and cream; metallic-roughness: glossy red squares.
+    let checker = procedural_texture(d, "block_checker", 128, |x, y| {
+        if (x / 16 + y / 16) % 2 == 0 {
+            [200, 40, 30, 255]
+        } else {
+            [235, 225, 200, 255]
+        }
+    });
+    let block_mr = procedural_texture(d, "block_metal_roughness", 128, |x, y| {
+        let rough = if (x / 16 + y / 16) % 2 == 0 { 90 } else { 230 };
+        [0, rough, 0, 255]
+    });
+    // Blender's Principled BSDF with Specular 0: the exporter writes a black specular colour.
+    let matte = |name: &str, color: Vec3| MaterialDesc {
+        specular_color: Vec3::ZERO,
+        ..MaterialDesc::diffuse(name, color)
+    };
+    let floor = b.material(MaterialDesc {
+        roughness: 0.6,
+        textures: MaterialTextures {
+            base_color: planks,
+            ..MaterialTextures::default()
+        },
+        ..MaterialDesc::diffuse("floor_wood", Vec3::ONE)
+    });
+    let wall = b.material(MaterialDesc {
+        textures: MaterialTextures {
+            normal: plaster.map(|texture| NormalTexture {
+                texture,
+                scale: 0.6,
+            }),
+            ..MaterialTextures::default()
+        },
+        ..matte("wall_plaster", Vec3::new(0.75, 0.72, 0.66))
+    });
+    let side_wall = b.material(matte("wall_paint", Vec3::new(0.45, 0.55, 0.6)));
+    let desk = b.material(MaterialDesc {
+        roughness: 0.35,
+        textures: MaterialTextures {
+            base_color: desk_wood,
+            ..MaterialTextures::default()
+        },
+        ..MaterialDesc::diffuse("desk_wood", Vec3::ONE)
+    });
+    let block = b.material(MaterialDesc {
+        textures: MaterialTextures {
+            base_color: checker,
+            metallic_roughness: block_mr,
+            ..MaterialTextures::default()
+        },
+        ..MaterialDesc::diffuse("block_checker", Vec3::ONE)
+    });
+    let metal = b.material(MaterialDesc {
+        metallic: 1.0,
+        roughness: 0.25,
+        ..MaterialDesc::diffuse("lamp_metal", Vec3::new(0.15, 0.35, 0.3))
+    });
+    let fabric = b.material(matte("shade_fabric", Vec3::new(0.7, 0.62, 0.5)));
+    let bulb = b.material(MaterialDesc::emitter(
+        "bulb_glow",
+        Vec3::new(250.0, 212.0, 150.0),
+        false,
+    ));
+
+    // The room corner: a floor, a back wall (z = −1.6) and a left wall (x = −2), open elsewhere.
+    let (w, h, back, left) = (2.5, 3.0, -1.6, -2.0);
+    b.flat("floor", floor, &[rect_y(0.0, 0.0, w, w, 0.0, true)]);
+    b.flat(
+        "back_wall",
+        wall,
+        &[vec![
+            Vec3::new(-w, 0.0, back),
+            Vec3::new(w, 0.0, back),
+            Vec3::new(w, h, back),
+            Vec3::new(-w, h, back),
+        ]],
+    );
+    b.flat(
+        "left_wall",
+        side_wall,
+        &[vec![
+            Vec3::new(left, 0.0, -w),
+            Vec3::new(left, h, -w),
+            Vec3::new(left, h, w),
+            Vec3::new(left, 0.0, w),
+        ]],
+    );
+
+    // The desk against the back wall.
+    let (x0, x1, z0, z1, ty) = (-1.5, 0.5, back + 0.05, back + 0.85, 0.75);
+    b.cuboid(
+        "desk_top",
+        desk,
+        Vec3::new(x0, ty - 0.04, z0),
+        Vec3::new(x1, ty, z1),
+    );
+    for (i, (x, z)) in [(x0, z0), (x1, z0), (x0, z1), (x1, z1)]
+        .into_iter()
+        .enumerate()
+    {
+        let c = Vec3::new(
+            x + if x == x0 { 0.05 } else { -0.05 },
+            0.0,
+            z + if z == z0 { 0.05 } else { -0.05 },
+        );
+        b.cuboid(
+            &format!("desk_leg_{i}"),
+            desk,
+            c - Vec3::new(0.03, 0.0, 0.03),
+            c + Vec3::new(0.03, ty - 0.04, 0.03),
+        );
+    }
+    // A checkered block on the desk.
+    b.cuboid(
+        "block",
+        block,
+        Vec3::new(-0.15, ty, back + 0.45),
+        Vec3::new(0.15, ty + 0.2, back + 0.65),
+    );
+
+    // The desk lamp: base, stem, a conical shade open at the bottom and the top, a bulb.
+    let (lx, lz) = (-0.8, back + 0.4);
+    b.cuboid(
+        "lamp_base",
+        metal,
+        Vec3::new(lx - 0.09, ty, lz - 0.09),
+        Vec3::new(lx + 0.09, ty + 0.025, lz + 0.09),
+    );
+    let (y_bottom, y_top, y_bulb) = (ty + 0.33, ty + 0.55, ty + 0.43);
+    b.cuboid(
+        "lamp_stem",
+        metal,
+        Vec3::new(lx - 0.01, ty + 0.025, lz - 0.01),
+        Vec3::new(lx + 0.01, y_bulb - 0.05, lz + 0.01),
+    );
+    let (r_bottom, r_top, sides) = (0.2, 0.09, 12);
+    let ring = |r: f32, y: f32| -> Vec<Vec3> {
+        (0..sides)
+            .map(|i| {
+                let a = std::f32::consts::TAU * i as f32 / sides as f32;
+                Vec3::new(lx + r * a.cos(), y, lz + r * a.sin())
+            })
+            .collect()
+    };
+    let (bottom, top) = (ring(r_bottom, y_bottom), ring(r_top, y_top));
+    let shade: Vec<Vec<Vec3>> = (0..sides)
+        .map(|i| {
+            let j = (i + 1) % sides;
+            vec![bottom[i], top[i], top[j], bottom[j]]
+        })
+        .collect();
+    b.flat("lamp_shade", fabric, &shade);
+    b.desc.meshes.push(uv_sphere(
+        "bulb",
+        bulb,
+        Vec3::new(lx, y_bulb, lz),
+        0.05,
+        // 23 vertices: few enough (at most 24) for the portals to bound it by its exact
+        // convex hull rather than a looser prism.
+        7,
+        4,
+    ));
+    b.portal("portal_bottom", "bulb", &bottom);
+    b.portal("portal_top", "bulb", &top);
+
+    // A ceiling lamp: Blender's 100 W point lamp, written as 100 · 683 / (4π) cd.
+    b.desc.lamps.push(LampDesc {
+        name: "ceiling_lamp".to_owned(),
+        kind: LampKind::Point,
+        color: Vec3::new(1.0, 0.95, 0.9),
+        intensity: 100.0 * 683.0 / (4.0 * std::f32::consts::PI),
+        range: None,
+        position: Vec3::new(0.6, 2.4, 0.4),
+        direction: Vec3::NEG_Z,
+    });
+
+    // Texture coordinates: planks every 1.6 m, the desk grain every 1 m, plaster every 0.6 m,
+    // the checkerboard across each face of the block.
+    for mesh in &mut b.desc.meshes {
+        let per_metre = match mesh.node_name.as_str() {
+            "floor" => 1.0 / 1.6,
+            "back_wall" => 1.0 / 0.6,
+            "block" => 1.0 / 0.3,
+            name if name.starts_with("desk") => 1.0,
+            _ => continue,
+        };
+        mesh.texcoords[0] = projected_uvs(mesh, per_metre);
+    }
+    b.camera(
+        Vec3::new(0.7, 1.35, 0.55),
+        Vec3::new(-0.5, 0.95, -1.1),
+        50.0,
+    );
     b.desc
 }
