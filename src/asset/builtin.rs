@@ -84,6 +84,37 @@ impl Builder {
         self.flat(node, material, &faces);
     }
 
+    /// A lamp shade `lamp_shade`: a frustum of `sides` quads about the vertical axis through
+    /// `(cx, cz)`, open at both ends, from the ring (radius, height) `bottom` to `top`, its
+    /// vertices at angles `(i + phase) / sides` turns. Returns the two rings (the openings).
+    fn shade(
+        &mut self,
+        material: usize,
+        (cx, cz): (f32, f32),
+        (r_bottom, y_bottom): (f32, f32),
+        (r_top, y_top): (f32, f32),
+        sides: usize,
+        phase: f32,
+    ) -> (Vec<Vec3>, Vec<Vec3>) {
+        let ring = |r: f32, y: f32| -> Vec<Vec3> {
+            (0..sides)
+                .map(|i| {
+                    let a = std::f32::consts::TAU * (i as f32 + phase) / sides as f32;
+                    Vec3::new(cx + r * a.cos(), y, cz + r * a.sin())
+                })
+                .collect()
+        };
+        let (bottom, top) = (ring(r_bottom, y_bottom), ring(r_top, y_top));
+        let quads: Vec<Vec<Vec3>> = (0..sides)
+            .map(|i| {
+                let j = (i + 1) % sides;
+                vec![bottom[i], top[i], top[j], bottom[j]]
+            })
+            .collect();
+        self.flat("lamp_shade", material, &quads);
+        (bottom, top)
+    }
+
     fn portal(&mut self, name: &str, target: &str, corners: &[Vec3]) {
         let portal = PortalDesc::from_polygon(name.to_owned(), target.to_owned(), corners);
         self.desc.portals.push(portal);
@@ -461,23 +492,7 @@ fn lampshade() -> SceneDesc {
         base + Vec3::new(-0.012, 0.03, -0.012),
         base + Vec3::new(0.012, y_light - ty - 0.02, 0.012),
     );
-    let (r_bottom, r_top, sides) = (0.24, 0.16, 8);
-    let ring = |r: f32, y: f32| -> Vec<Vec3> {
-        (0..sides)
-            .map(|i| {
-                let a = std::f32::consts::TAU * (i as f32 + 0.5) / sides as f32;
-                Vec3::new(tx + r * a.cos(), y, tz + r * a.sin())
-            })
-            .collect()
-    };
-    let (bottom, top) = (ring(r_bottom, y_bottom), ring(r_top, y_top));
-    let shade: Vec<Vec<Vec3>> = (0..sides)
-        .map(|i| {
-            let j = (i + 1) % sides;
-            vec![bottom[i], top[i], top[j], bottom[j]]
-        })
-        .collect();
-    b.flat("lamp_shade", fabric, &shade);
+    let (bottom, top) = b.shade(fabric, (tx, tz), (0.24, y_bottom), (0.16, y_top), 8, 0.5);
     b.flat("bulb", bulb, &[rect_y(tx, tz, 0.07, 0.07, y_light, true)]);
     b.portal("portal_top", "bulb", &top);
     b.portal("portal_bottom", "bulb", &bottom);
@@ -971,23 +986,7 @@ fn desklamp() -> SceneDesc {
         Vec3::new(lx - 0.01, ty + 0.025, lz - 0.01),
         Vec3::new(lx + 0.01, y_bulb - 0.05, lz + 0.01),
     );
-    let (r_bottom, r_top, sides) = (0.2, 0.09, 12);
-    let ring = |r: f32, y: f32| -> Vec<Vec3> {
-        (0..sides)
-            .map(|i| {
-                let a = std::f32::consts::TAU * i as f32 / sides as f32;
-                Vec3::new(lx + r * a.cos(), y, lz + r * a.sin())
-            })
-            .collect()
-    };
-    let (bottom, top) = (ring(r_bottom, y_bottom), ring(r_top, y_top));
-    let shade: Vec<Vec<Vec3>> = (0..sides)
-        .map(|i| {
-            let j = (i + 1) % sides;
-            vec![bottom[i], top[i], top[j], bottom[j]]
-        })
-        .collect();
-    b.flat("lamp_shade", fabric, &shade);
+    let (bottom, top) = b.shade(fabric, (lx, lz), (0.2, y_bottom), (0.09, y_top), 12, 0.0);
     b.desc.meshes.push(uv_sphere(
         "bulb",
         bulb,
