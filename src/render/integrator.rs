@@ -514,25 +514,16 @@ impl<'a> Integrator<'a> {
             return Vec3::ZERO;
         };
         stats.count_technique(sample.technique.technique());
-        if sample.le == Vec3::ZERO
-            || sample.pdf.is_nan()
-            || sample.pdf <= 0.0
-            || env_prob <= 0.0
-            || sample.wi.dot(s.ng) <= 0.0
-        {
-            return Vec3::ZERO;
-        }
-        let wi_local = s.frame.to_local(sample.wi);
-        let (f, bsdf_pdf) = s.material.eval_pdf(s.wo_local, wi_local);
-        if f == Vec3::ZERO {
-            return Vec3::ZERO;
-        }
-        stats.shadow_rays += 1;
-        if tracer.occluded(s.x, sample.wi, 0.0, f32::INFINITY) {
-            return Vec3::ZERO;
-        }
         let light_pdf = env_prob * sample.pdf;
-        f * sample.le * wi_local.z * power_heuristic(light_pdf, bsdf_pdf) / light_pdf
+        Self::weighted(
+            tracer,
+            s,
+            sample.wi,
+            sample.le,
+            light_pdf,
+            f32::INFINITY,
+            stats,
+        )
     }
 
     /// A light sample's contribution, weighted against BSDF sampling by the power heuristic.
@@ -553,25 +544,36 @@ impl<'a> Integrator<'a> {
             Some(Some(surface)) => sample.le * surface.emission_scale(y.p),
             _ => sample.le,
         };
-        if le == Vec3::ZERO
-            || sample.pdf.is_nan()
-            || sample.pdf <= 0.0
-            || sample.wi.dot(s.ng) <= 0.0
-        {
+        // Stop short of the light so that its own triangles do not occlude it.
+        let tmax = dist * (1.0 - 1e-4) - 1e-5;
+        let light_pdf = light_prob * sample.pdf;
+        Self::weighted(tracer, s, sample.wi, le, light_pdf, tmax, stats)
+    }
+
+    /// Radiance `le` arriving along `wi`, drawn with density `light_pdf` (selection times
+    /// mixture), weighted against BSDF sampling by the power heuristic; zero if something
+    /// stands before `tmax`, or the direction is below the surface or has no density.
+    fn weighted<T: Tracer>(
+        tracer: &T,
+        s: &Shading,
+        wi: Vec3,
+        le: Vec3,
+        light_pdf: f32,
+        tmax: f32,
+        stats: &mut Stats,
+    ) -> Vec3 {
+        if le == Vec3::ZERO || light_pdf.is_nan() || light_pdf <= 0.0 || wi.dot(s.ng) <= 0.0 {
             return Vec3::ZERO;
         }
-        let wi_local = s.frame.to_local(sample.wi);
+        let wi_local = s.frame.to_local(wi);
         let (f, bsdf_pdf) = s.material.eval_pdf(s.wo_local, wi_local);
         if f == Vec3::ZERO {
             return Vec3::ZERO;
         }
         stats.shadow_rays += 1;
-        // Stop short of the light so that its own triangles do not occlude it.
-        let tmax = dist * (1.0 - 1e-4) - 1e-5;
-        if tracer.occluded(s.x, sample.wi, 0.0, tmax) {
+        if tracer.occluded(s.x, wi, 0.0, tmax) {
             return Vec3::ZERO;
         }
-        let light_pdf = light_prob * sample.pdf;
         f * le * wi_local.z * power_heuristic(light_pdf, bsdf_pdf) / light_pdf
     }
 
