@@ -40,7 +40,10 @@ impl PortalViewApp {
                 format!("portal {i}: {message}"),
             );
         }
-        ui.horizontal_wrapped(|ui| {
+        // One button a line: a wrapped row changes the panel's height with its width, and the
+        // scroll bar that height brings changes the width back, so the layout had two stable
+        // states and the first frame decided which.
+        ui.vertical(|ui| {
             if ui
                 .button("Add window portal")
                 .on_hover_text("A window onto the environment at the camera's target, facing the camera; move it into the opening")
