@@ -168,6 +168,32 @@ impl Environment {
         }
     }
 
+    /// [`Self::radiance`] and [`Self::pdf`] at once, from one pixel lookup.
+    pub fn radiance_pdf(&self, w: Vec3) -> (Vec3, f32) {
+        match &self.map {
+            Map::Constant(c) => (*c * self.strength, 1.0 / (4.0 * PI)),
+            Map::Image {
+                width,
+                height,
+                pixels,
+                rows,
+                columns,
+            } => {
+                let m = self.to_map(w);
+                let (i, j) = pixel_of(m, *width, *height);
+                let le = pixels[(j * width + i) as usize] * self.strength;
+                let sin_theta = (m.x * m.x + m.z * m.z).sqrt();
+                if sin_theta <= 0.0 {
+                    return (le, 0.0);
+                }
+                let pdf_uv = rows.pmf(j as usize)
+                    * columns[j as usize].pmf(i as usize)
+                    * (*width * *height) as f32;
+                (le, pdf_uv / (2.0 * PI * PI * sin_theta))
+            }
+        }
+    }
+
     /// The weight [`Self::sample`] gives direction `w`, up to a constant: what a technique
     /// proportional to the environment within a window follows.
     pub fn sampling_weight(&self, w: Vec3) -> f32 {

@@ -4,6 +4,7 @@ pub mod antishadow;
 pub mod area;
 pub mod environment;
 pub mod estimator;
+pub mod guided;
 pub mod hull;
 pub mod portal;
 pub mod punctual;

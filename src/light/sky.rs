@@ -234,28 +234,44 @@ impl SkySampler {
     ) -> Option<SkySample> {
         let env = scene.environment()?;
         let x = ctx.x;
-        let (technique, (wi, technique_pdf)) = if !ctx.uses_windows || u_technique < ctx.alpha {
-            (SkyTechnique::Environment, env.sample(u)?)
-        } else {
-            let v = (u_technique - ctx.alpha) / (1.0 - ctx.alpha);
-            let term = pick_by_weight(&ctx.terms, |t| t.weight, v)?;
-            let window = &scene.windows()[term.window];
-            let sampled = match term.technique {
-                SkyTechnique::Environment => env.sample(u)?,
-                SkyTechnique::WindowArea => window.sample_area(x, u)?,
-                SkyTechnique::SolidAngle => term.spherical.as_ref()?.sample(u)?,
-                SkyTechnique::Guided => window.sample_guided(term.guided.as_ref()?, x, u)?,
+        // The window drawn from, if any: its term's density is the one its draw computed.
+        let (technique, drawn, (wi, technique_pdf)) =
+            if !ctx.uses_windows || u_technique < ctx.alpha {
+                (SkyTechnique::Environment, None, env.sample(u)?)
+            } else {
+                let v = (u_technique - ctx.alpha) / (1.0 - ctx.alpha);
+                let term = pick_by_weight(&ctx.terms, |t| t.weight, v)?;
+                let window = &scene.windows()[term.window];
+                let sampled = match term.technique {
+                    SkyTechnique::Environment => env.sample(u)?,
+                    SkyTechnique::WindowArea => window.sample_area(x, u)?,
+                    SkyTechnique::SolidAngle => term.spherical.as_ref()?.sample(u)?,
+                    SkyTechnique::Guided => window.sample_guided(term.guided.as_ref()?, x, u)?,
+                };
+                (term.technique, Some(term.window), sampled)
             };
-            (term.technique, sampled)
-        };
+        // One pixel lookup gives the radiance and the environment's density.
+        let (le, p_env) = env.radiance_pdf(wi);
         let pdf = if ctx.uses_windows {
-            self.pdf(scene, ctx, wi)
+            let windows: f32 = ctx
+                .terms
+                .iter()
+                .map(|t| {
+                    let p = if Some(t.window) == drawn {
+                        technique_pdf
+                    } else {
+                        window_term_pdf(scene, x, t, p_env, wi)
+                    };
+                    t.weight * p
+                })
+                .sum();
+            ctx.alpha * p_env + (1.0 - ctx.alpha) * windows
         } else {
             technique_pdf
         };
         Some(SkySample {
             wi,
-            le: env.radiance(wi),
+            le,
             pdf,
             technique,
             technique_pdf,

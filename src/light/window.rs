@@ -8,14 +8,14 @@
 //! proportional to the environment within it ([`Window::sample_guided`]), whose table lives in a
 //! parameterisation that does not depend on the shading point (after Bitterli et al. 2015).
 
-use glam::{DVec3, Vec2, Vec3};
-use std::f64::consts::FRAC_PI_2;
-
 use super::environment::Environment;
+pub use super::guided::GuidedBox;
+use super::guided::{GuidedTable, jacobian};
 use crate::asset::desc::PortalDesc;
 use crate::sampling::cyclic_pairs;
 use crate::sampling::polygon::{ConvexPolygon, PolygonError};
 use crate::sampling::spherical::SphericalPolygon;
+use glam::{DVec3, Vec2, Vec3};
 
 /// Why a window portal cannot be used; every message names the node.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -25,11 +25,6 @@ pub enum WindowError {
     #[error("window portal node '{portal}': portal_light_probability {alpha} is not in [0, 1]")]
     BadAlpha { portal: String, alpha: f32 },
 }
-
-/// Cells per side of a window's guided table over `(α, β) ∈ (−π/2, π/2)²` (0.7° each, as the built-in sky's pixels).
-pub const GUIDED_CELLS: usize = 256;
-/// Supersamples per cell side when the table is built.
-const GUIDED_SUPERSAMPLES: usize = 3;
 
 /// A validated window portal.
 #[derive(Clone, Debug)]
@@ -59,41 +54,9 @@ struct WindowFrame {
     bounds: [f64; 4],
 }
 
-/// The piecewise-constant density over `(α, β)`: its summed-area table, whose bilinear
-/// interpolation is the density's exact integral from the corner `(−π/2, −π/2)`, and each
-/// column's running integral in `β`.
-#[derive(Clone, Debug)]
-struct GuidedTable {
-    /// `T[c·N + r]`, cell `c` in `α`, `r` in `β`.
-    weights: Vec<f64>,
-    /// `S[c·(N+1) + r]`: the integral of `T` over `α < edge(c)`, `β < edge(r)`.
-    summed: Vec<f64>,
-    /// Column `c`'s integral from `β = −π/2` to the edge below row `r`: `[c·(N+1) + r]`.
-    column_cdf: Vec<f64>,
-}
-
-/// The window's directions from one shading point, in `(α, β)`: a box, and the table's
-/// integral over it (the normaliser of the guided density there).
-#[derive(Clone, Copy, Debug)]
-pub struct GuidedBox {
-    alpha: [f64; 2],
-    beta: [f64; 2],
-    integral: f64,
-}
-
 /// Slack of the inside test, as a distance on the window's plane per unit of `t + reach`
 /// (as for area-light portals: a direction drawn near an edge is never judged outside).
 const EDGE_SLACK: f64 = 8.0 * f32::EPSILON as f64;
-
-const CELL: f64 = std::f64::consts::PI / GUIDED_CELLS as f64;
-
-impl GuidedBox {
-    /// `Z(x)`: the table's integral over the box (the environment's weight through the
-    /// window's bounding box, seen from x).
-    pub fn integral(&self) -> f64 {
-        self.integral
-    }
-}
 
 impl Window {
     /// Validates `desc`, the `desc_index`-th portal of its scene. Its front is its winding's
@@ -122,9 +85,12 @@ impl Window {
             .map(|v| v.as_dvec3().distance(v0))
             .fold(0.0, f64::max);
         let frame = WindowFrame::new(&polygon);
-        let guided = environment
-            .filter(|e| !e.is_constant())
-            .map(|e| GuidedTable::new(&frame, e));
+        let guided = environment.filter(|e| !e.is_constant()).map(|e| {
+            GuidedTable::new(
+                |a, b| frame.direction(a, b).as_vec3(),
+                |w| e.sampling_weight(w),
+            )
+        });
         Ok(Window {
             name: desc.name.clone(),
             desc_index,
@@ -204,12 +170,7 @@ impl Window {
         let [s0, s1, t0, t1] = f.bounds;
         let alpha = [((s0 - xs) / h).atan(), ((s1 - xs) / h).atan()];
         let beta = [((t0 - xt) / h).atan(), ((t1 - xt) / h).atan()];
-        let integral = table.box_integral(alpha, beta);
-        (integral > 0.0 && integral.is_finite()).then_some(GuidedBox {
-            alpha,
-            beta,
-            integral,
-        })
+        table.guided_box(alpha, beta)
     }
 
     /// A direction through the window drawn proportional to the table within the box, with its
@@ -218,13 +179,12 @@ impl Window {
     /// box restricted to the window (it integrates to the window's share of `Z`).
     pub fn sample_guided(&self, b: &GuidedBox, x: Vec3, u: Vec2) -> Option<(Vec3, f32)> {
         let table = self.guided.as_ref()?;
-        let (alpha, c) = table.sample_alpha(b, f64::from(u.x))?;
-        let (beta, r) = table.sample_beta(c, b.beta, f64::from(u.y))?;
+        let (alpha, beta, weight) = table.sample(b, [f64::from(u.x), f64::from(u.y)])?;
         let (ta, tb) = (alpha.tan(), beta.tan());
         let f = &self.frame;
         let wi = (ta * f.s + tb * f.t + f.out).normalize().as_vec3();
         self.through(x, wi)?;
-        let pdf = table.weights[c * GUIDED_CELLS + r] / (b.integral * jacobian(ta, tb));
+        let pdf = weight / (b.integral() * jacobian(ta, tb));
         (pdf > 0.0 && pdf.is_finite()).then_some((wi, pdf as f32))
     }
 
@@ -248,26 +208,8 @@ impl Window {
         // outside takes the box's edge cell.
         let alpha = ta.atan().clamp(b.alpha[0], b.alpha[1]);
         let beta = tb.atan().clamp(b.beta[0], b.beta[1]);
-        let weight = table.weights[cell(alpha) * GUIDED_CELLS + cell(beta)];
-        (weight / (b.integral * jacobian(ta, tb))) as f32
+        (table.density(alpha, beta) / (b.integral() * jacobian(ta, tb))) as f32
     }
-}
-
-/// `dω / (dα dβ)` at `a = tan α`, `b = tan β`: the gnomonic map's `(1 + a² + b²)^(−3/2)` times
-/// `da/dα · db/dβ = (1 + a²)(1 + b²)`.
-fn jacobian(a: f64, b: f64) -> f64 {
-    let r2 = 1.0 + a * a + b * b;
-    (1.0 + a * a) * (1.0 + b * b) / (r2 * r2.sqrt())
-}
-
-/// The cell of angle `a` in `(−π/2, π/2)`.
-fn cell(a: f64) -> usize {
-    (((a + FRAC_PI_2) / CELL).max(0.0) as usize).min(GUIDED_CELLS - 1)
-}
-
-/// The lower edge of cell `k`.
-fn edge(k: usize) -> f64 {
-    -FRAC_PI_2 + k as f64 * CELL
 }
 
 impl WindowFrame {
@@ -331,131 +273,4 @@ impl WindowFrame {
     fn direction(&self, alpha: f64, beta: f64) -> DVec3 {
         (alpha.tan() * self.s + beta.tan() * self.t + self.out).normalize()
     }
-}
-
-impl GuidedTable {
-    /// `T` per cell: the environment's sampling weight times the Jacobian, averaged over
-    /// supersamples, floored at a millionth of the mean so that every direction through the
-    /// window can be drawn.
-    fn new(frame: &WindowFrame, environment: &Environment) -> Self {
-        let n = GUIDED_CELLS;
-        let k = GUIDED_SUPERSAMPLES;
-        let mut weights = vec![0.0; n * n];
-        for c in 0..n {
-            for r in 0..n {
-                let mut sum = 0.0;
-                for i in 0..k {
-                    for j in 0..k {
-                        let alpha = edge(c) + (i as f64 + 0.5) / k as f64 * CELL;
-                        let beta = edge(r) + (j as f64 + 0.5) / k as f64 * CELL;
-                        let w = frame.direction(alpha, beta).as_vec3();
-                        sum += f64::from(environment.sampling_weight(w))
-                            * jacobian(alpha.tan(), beta.tan());
-                    }
-                }
-                weights[c * n + r] = sum / (k * k) as f64;
-            }
-        }
-        let mean = weights.iter().sum::<f64>() / weights.len() as f64;
-        let floor = if mean > 0.0 { 1e-6 * mean } else { 1.0 };
-        for w in &mut weights {
-            *w = w.max(floor);
-        }
-        let m = n + 1;
-        let mut column_cdf = vec![0.0; n * m];
-        let mut summed = vec![0.0; m * m];
-        for c in 0..n {
-            for r in 0..n {
-                let mass = weights[c * n + r] * CELL;
-                column_cdf[c * m + r + 1] = column_cdf[c * m + r] + mass;
-                summed[(c + 1) * m + r + 1] =
-                    summed[c * m + r + 1] + column_cdf[c * m + r + 1] * CELL;
-            }
-        }
-        GuidedTable {
-            weights,
-            summed,
-            column_cdf,
-        }
-    }
-
-    /// The integral of `T` over `[−π/2, α] × [−π/2, β]`: bilinear in the summed-area table,
-    /// which is exact for a piecewise-constant density.
-    fn integral_to(&self, alpha: f64, beta: f64) -> f64 {
-        let (c, fa) = locate(alpha);
-        let (r, fb) = locate(beta);
-        let m = GUIDED_CELLS + 1;
-        let s = |i: usize, j: usize| self.summed[i * m + j];
-        let (s00, s10, s01, s11) = (s(c, r), s(c + 1, r), s(c, r + 1), s(c + 1, r + 1));
-        s00 + fa * (s10 - s00) + fb * (s01 - s00) + fa * fb * (s11 - s10 - s01 + s00)
-    }
-
-    /// The marginal CDF in `α` over the box's `β` range, from `−π/2`.
-    fn marginal_to(&self, alpha: f64, beta: [f64; 2]) -> f64 {
-        self.integral_to(alpha, beta[1]) - self.integral_to(alpha, beta[0])
-    }
-
-    /// `Z`: the table's integral over the box.
-    fn box_integral(&self, alpha: [f64; 2], beta: [f64; 2]) -> f64 {
-        self.marginal_to(alpha[1], beta) - self.marginal_to(alpha[0], beta)
-    }
-
-    /// Column `c`'s integral from `−π/2` to `beta` (exact: linear within a cell).
-    fn column_integral_to(&self, c: usize, beta: f64) -> f64 {
-        let (r, f) = locate(beta);
-        self.column_cdf[c * (GUIDED_CELLS + 1) + r] + self.weights[c * GUIDED_CELLS + r] * f * CELL
-    }
-
-    /// Inverts the marginal CDF in `α` (piecewise linear): the angle and its column. A binary
-    /// search over the column edges inside the box, then a linear step within the column.
-    fn sample_alpha(&self, b: &GuidedBox, u: f64) -> Option<(f64, usize)> {
-        let base = self.marginal_to(b.alpha[0], b.beta);
-        let target = base + u * b.integral;
-        let (c0, c1) = (cell(b.alpha[0]), cell(b.alpha[1]));
-        // The first column whose upper end reaches past the target.
-        let (mut lo, mut hi) = (c0, c1);
-        while lo < hi {
-            let mid = (lo + hi) / 2;
-            if self.marginal_to(edge(mid + 1).min(b.alpha[1]), b.beta) > target {
-                hi = mid;
-            } else {
-                lo = mid + 1;
-            }
-        }
-        let c = lo;
-        let start = b.alpha[0].max(edge(c));
-        let end = b.alpha[1].min(edge(c + 1)).max(start);
-        let at_start = self.marginal_to(start, b.beta);
-        let density = (self.marginal_to(end, b.beta) - at_start) / (end - start);
-        if !(density > 0.0 && density.is_finite()) {
-            return None;
-        }
-        Some((((target - at_start) / density + start).clamp(start, end), c))
-    }
-
-    /// Inverts column `c`'s CDF in `β` within `[β0, β1]`: the angle and its row.
-    fn sample_beta(&self, c: usize, beta: [f64; 2], u: f64) -> Option<(f64, usize)> {
-        let m = GUIDED_CELLS + 1;
-        let (f0, f1) = (
-            self.column_integral_to(c, beta[0]),
-            self.column_integral_to(c, beta[1]),
-        );
-        let target = f0 + u * (f1 - f0);
-        let (r0, r1) = (cell(beta[0]), cell(beta[1]));
-        // The first row whose upper edge's running integral passes the target.
-        let ends = &self.column_cdf[c * m + r0 + 1..=c * m + r1 + 1];
-        let r = (r0 + ends.partition_point(|&f| f <= target)).min(r1);
-        let weight = self.weights[c * GUIDED_CELLS + r];
-        let start = beta[0].max(edge(r));
-        let end = beta[1].min(edge(r + 1)).max(start);
-        let at_edge = self.column_cdf[c * m + r];
-        Some(((edge(r) + (target - at_edge) / weight).clamp(start, end), r))
-    }
-}
-
-/// The cell of angle `a` and the fraction of it below `a`.
-fn locate(a: f64) -> (usize, f64) {
-    let x = (a + FRAC_PI_2) / CELL;
-    let c = (x.max(0.0) as usize).min(GUIDED_CELLS - 1);
-    (c, (x - c as f64).clamp(0.0, 1.0))
 }

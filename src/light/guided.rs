@@ -1,0 +1,337 @@
+//! The table behind sampling the environment within a window (`docs/method.md` §9.3): a
+//! piecewise-constant density over the window's point-independent angles
+//! `(α, β) ∈ (−π/2, π/2)²` (after Bitterli et al. 2015), on a grid that is uniform (0.7°) except
+//! where the environment jumps (a sun's edge), whose intervals are cut 32 times finer, and the
+//! exact integrals that draw from it within a box.
+
+use glam::Vec3;
+use std::f64::consts::{FRAC_PI_2, PI};
+
+/// Base intervals per axis (0.7° each, as the built-in sky's pixels).
+pub const GUIDED_BASE_CELLS: usize = 256;
+/// Fine cells per base interval where the environment jumps (0.022° each).
+pub const GUIDED_REFINE: usize = 32;
+/// At most this many base intervals per axis are refined (before widening by one on each
+/// side): a sun takes about ten.
+const MAX_REFINED: usize = 24;
+/// A base interval is refined when the mass its cells could misplace (their supersamples'
+/// spread times their area) exceeds this share of the table's total.
+const REFINE_SHARE: f64 = 1e-3;
+/// Supersamples per side of a base cell.
+const SUPERSAMPLES: usize = 3;
+
+const BASE_WIDTH: f64 = PI / GUIDED_BASE_CELLS as f64;
+
+/// One axis of the grid: base intervals of [`BASE_WIDTH`], each cut into equal fine cells.
+#[derive(Clone, Debug)]
+struct Axis {
+    /// Fine cell edges from `−π/2` to `π/2`.
+    edges: Vec<f64>,
+    /// `first[b]`: the first fine cell of base interval `b`; `first[BASE] = cells`.
+    first: Vec<usize>,
+}
+
+impl Axis {
+    /// Base interval `b` cut into `GUIDED_REFINE` cells where `refined[b]`, else kept whole.
+    fn new(refined: &[bool]) -> Axis {
+        let mut edges = Vec::with_capacity(GUIDED_BASE_CELLS + 1);
+        let mut first = Vec::with_capacity(GUIDED_BASE_CELLS + 1);
+        for (b, &fine) in refined.iter().enumerate() {
+            first.push(edges.len());
+            let k = if fine { GUIDED_REFINE } else { 1 };
+            for j in 0..k {
+                edges.push(-FRAC_PI_2 + (b as f64 + j as f64 / k as f64) * BASE_WIDTH);
+            }
+        }
+        first.push(edges.len());
+        edges.push(FRAC_PI_2);
+        Axis { edges, first }
+    }
+
+    fn cells(&self) -> usize {
+        self.edges.len() - 1
+    }
+
+    fn width(&self, i: usize) -> f64 {
+        self.edges[i + 1] - self.edges[i]
+    }
+
+    /// The fine cell of angle `a` and the fraction of it below `a`, in O(1): the base interval,
+    /// then the cell within it.
+    fn locate(&self, a: f64) -> (usize, f64) {
+        let x = (a + FRAC_PI_2) / BASE_WIDTH;
+        let b = (x.max(0.0) as usize).min(GUIDED_BASE_CELLS - 1);
+        let (f0, f1) = (self.first[b], self.first[b + 1]);
+        let y = (x - b as f64) * (f1 - f0) as f64;
+        let j = (y.max(0.0) as usize).min(f1 - f0 - 1);
+        (f0 + j, (y - j as f64).clamp(0.0, 1.0))
+    }
+
+    fn cell(&self, a: f64) -> usize {
+        self.locate(a).0
+    }
+}
+
+/// The density `T(α, β)`, constant on each cell, with its summed-area table (whose bilinear
+/// interpolation within a cell is `T`'s exact integral from the corner `(−π/2, −π/2)`) and
+/// each column's running integral in `β`.
+#[derive(Clone, Debug)]
+pub struct GuidedTable {
+    alpha: Axis,
+    beta: Axis,
+    /// `T[c·B + r]`, `c` the cell in `α`, `r` in `β`, `B` the cells in `β` (column-major: a
+    /// column's cells are contiguous for the draw in `β`).
+    weights: Vec<f64>,
+    /// `S[r·(A+1) + c]`: the integral of `T` over `α < edge c`, `β < edge r` (row-major: the
+    /// draw in `α` searches along rows).
+    summed: Vec<f64>,
+    /// `C[c·(B+1) + r]`: column `c`'s integral from `β = −π/2` to its edge `r`.
+    column_cdf: Vec<f64>,
+}
+
+/// The window's directions from one shading point, in `(α, β)`: a box, and the table's
+/// integral over it (the normaliser of the guided density there).
+#[derive(Clone, Copy, Debug)]
+pub struct GuidedBox {
+    pub(crate) alpha: [f64; 2],
+    pub(crate) beta: [f64; 2],
+    integral: f64,
+}
+
+impl GuidedBox {
+    /// `Z(x)`: the table's integral over the box (the environment's weight through the
+    /// window's bounding box, seen from x).
+    pub fn integral(&self) -> f64 {
+        self.integral
+    }
+}
+
+/// `dω / (dα dβ)` at `a = tan α`, `b = tan β`: the gnomonic map's `(1 + a² + b²)^(−3/2)` times
+/// `da/dα · db/dβ = (1 + a²)(1 + b²)`.
+pub fn jacobian(a: f64, b: f64) -> f64 {
+    let r2 = 1.0 + a * a + b * b;
+    (1.0 + a * a) * (1.0 + b * b) / (r2 * r2.sqrt())
+}
+
+impl GuidedTable {
+    /// `T` for `weight(direction(α, β)) · J(α, β)`, `weight` the environment's sampling weight:
+    /// means of supersamples over 0.7° cells; the base intervals whose cells' supersamples
+    /// spread most (a sun's edge) are refined and their fine cells sampled at their centres.
+    /// Floored at a millionth of the mean so that every direction through the window can be
+    /// drawn.
+    pub fn new(direction: impl Fn(f64, f64) -> Vec3, weight: impl Fn(Vec3) -> f32) -> Self {
+        let n = GUIDED_BASE_CELLS;
+        let value = |alpha: f64, beta: f64| {
+            f64::from(weight(direction(alpha, beta))) * jacobian(alpha.tan(), beta.tan())
+        };
+        // The base grid: means, and the spread of supersamples per base interval of each axis.
+        let k = SUPERSAMPLES;
+        let mut base = vec![0.0; n * n];
+        let (mut spread_alpha, mut spread_beta) = (vec![0.0; n], vec![0.0; n]);
+        let offsets: Vec<f64> = (0..k)
+            .map(|i| (i as f64 + 0.5) / k as f64 * BASE_WIDTH)
+            .collect();
+        for c in 0..n {
+            let a0 = -FRAC_PI_2 + c as f64 * BASE_WIDTH;
+            for r in 0..n {
+                let b0 = -FRAC_PI_2 + r as f64 * BASE_WIDTH;
+                let (mut sum, mut lo, mut hi) = (0.0, f64::INFINITY, 0.0f64);
+                for da in &offsets {
+                    for db in &offsets {
+                        let v = value(a0 + da, b0 + db);
+                        sum += v;
+                        lo = lo.min(v);
+                        hi = hi.max(v);
+                    }
+                }
+                base[c * n + r] = sum / (k * k) as f64;
+                let misplaced = (hi - lo) * BASE_WIDTH * BASE_WIDTH;
+                spread_alpha[c] += misplaced;
+                spread_beta[r] += misplaced;
+            }
+        }
+        let total: f64 = base.iter().sum::<f64>() * BASE_WIDTH * BASE_WIDTH;
+        let alpha = Axis::new(&refined(&spread_alpha, total));
+        let beta = Axis::new(&refined(&spread_beta, total));
+        let (na, nb) = (alpha.cells(), beta.cells());
+        let mut weights = vec![0.0; na * nb];
+        for c in 0..na {
+            let whole_c = alpha.width(c) > 0.5 * BASE_WIDTH;
+            for r in 0..nb {
+                let whole_r = beta.width(r) > 0.5 * BASE_WIDTH;
+                weights[c * nb + r] = if whole_c && whole_r {
+                    let (bc, br) = (alpha.base_of(c), beta.base_of(r));
+                    base[bc * n + br]
+                } else {
+                    // A refined cell: its supersamples along the axes it was not refined in.
+                    let along = |axis: &Axis, i: usize, whole: bool| -> Vec<f64> {
+                        if whole {
+                            offsets.iter().map(|o| axis.edges[i] + o).collect()
+                        } else {
+                            vec![0.5 * (axis.edges[i] + axis.edges[i + 1])]
+                        }
+                    };
+                    let (pa, pb) = (along(&alpha, c, whole_c), along(&beta, r, whole_r));
+                    let sum: f64 = pa
+                        .iter()
+                        .flat_map(|&a| pb.iter().map(move |&b| (a, b)))
+                        .map(|(a, b)| value(a, b))
+                        .sum();
+                    sum / (pa.len() * pb.len()) as f64
+                };
+            }
+        }
+        let mean = total / (PI * PI);
+        let floor = if mean > 0.0 && mean.is_finite() {
+            1e-6 * mean
+        } else {
+            1.0
+        };
+        for w in &mut weights {
+            if !(*w >= floor) {
+                *w = floor;
+            }
+        }
+        let (ma, mb) = (na + 1, nb + 1);
+        let mut column_cdf = vec![0.0; na * mb];
+        let mut summed = vec![0.0; ma * mb];
+        for c in 0..na {
+            let wa = alpha.width(c);
+            for r in 0..nb {
+                column_cdf[c * mb + r + 1] =
+                    column_cdf[c * mb + r] + weights[c * nb + r] * beta.width(r);
+                summed[(r + 1) * ma + c + 1] =
+                    summed[(r + 1) * ma + c] + column_cdf[c * mb + r + 1] * wa;
+            }
+        }
+        GuidedTable {
+            alpha,
+            beta,
+            weights,
+            summed,
+            column_cdf,
+        }
+    }
+
+    /// Cells per axis `(α, β)`.
+    pub fn cells(&self) -> (usize, usize) {
+        (self.alpha.cells(), self.beta.cells())
+    }
+
+    /// `T` at `(α, β)`.
+    pub fn density(&self, alpha: f64, beta: f64) -> f64 {
+        self.weights[self.alpha.cell(alpha) * self.beta.cells() + self.beta.cell(beta)]
+    }
+
+    /// The integral of `T` over `[−π/2, α] × [−π/2, β]`: bilinear in the summed-area table,
+    /// which is exact for a piecewise-constant density.
+    pub fn integral_to(&self, alpha: f64, beta: f64) -> f64 {
+        let (c, fa) = self.alpha.locate(alpha);
+        let (r, fb) = self.beta.locate(beta);
+        let m = self.alpha.cells() + 1;
+        let (lo, hi) = (&self.summed[r * m + c..], &self.summed[(r + 1) * m + c..]);
+        let (s00, s10, s01, s11) = (lo[0], lo[1], hi[0], hi[1]);
+        s00 + fa * (s10 - s00) + fb * (s01 - s00) + fa * fb * (s11 - s10 - s01 + s00)
+    }
+
+    /// The box `[α0, α1] × [β0, β1]` with its integral (`None` if it is empty).
+    pub fn guided_box(&self, alpha: [f64; 2], beta: [f64; 2]) -> Option<GuidedBox> {
+        let integral = self.integral_to(alpha[1], beta[1])
+            - self.integral_to(alpha[0], beta[1])
+            - self.integral_to(alpha[1], beta[0])
+            + self.integral_to(alpha[0], beta[0]);
+        (integral > 0.0 && integral.is_finite()).then_some(GuidedBox {
+            alpha,
+            beta,
+            integral,
+        })
+    }
+
+    /// Draws `(α, β)` in the box with density `T / Z`: the angles, and `T` there.
+    pub fn sample(&self, b: &GuidedBox, u: [f64; 2]) -> Option<(f64, f64, f64)> {
+        let (alpha, c) = self.sample_alpha(b, u[0])?;
+        let (beta, r) = self.sample_beta(c, b.beta, u[1])?;
+        Some((alpha, beta, self.weights[c * self.beta.cells() + r]))
+    }
+
+    /// Inverts the marginal CDF in `α` over the box's `β` range (piecewise linear, with a
+    /// node at each column edge): a binary search along the summed-area table's rows at
+    /// `β0` and `β1`, then a linear step within the column. The angle and its column.
+    fn sample_alpha(&self, b: &GuidedBox, u: f64) -> Option<(f64, usize)> {
+        let m = self.alpha.cells() + 1;
+        let (r0, g0) = self.beta.locate(b.beta[0]);
+        let (r1, g1) = self.beta.locate(b.beta[1]);
+        let row = |r: usize| &self.summed[r * m..(r + 1) * m];
+        let (s0, s0n, s1, s1n) = (row(r0), row(r0 + 1), row(r1), row(r1 + 1));
+        // M at column edge c: the integral over α < edge c, β0 < β < β1.
+        let marginal = |c: usize| (s1[c] + g1 * (s1n[c] - s1[c])) - (s0[c] + g0 * (s0n[c] - s0[c]));
+        let (c0, f0) = self.alpha.locate(b.alpha[0]);
+        let c1 = self.alpha.cell(b.alpha[1]);
+        let at_start = marginal(c0) + f0 * (marginal(c0 + 1) - marginal(c0));
+        let target = at_start + u * b.integral;
+        // The first column whose upper edge's M passes the target (the last one is c1).
+        let (mut lo, mut hi) = (c0, c1);
+        while lo < hi {
+            let mid = (lo + hi) / 2;
+            if marginal(mid + 1) > target {
+                hi = mid;
+            } else {
+                lo = mid + 1;
+            }
+        }
+        let c = lo;
+        let (e0, width) = (self.alpha.edges[c], self.alpha.width(c));
+        let (m0, m1) = (marginal(c), marginal(c + 1));
+        let density = (m1 - m0) / width;
+        if !(density > 0.0 && density.is_finite()) {
+            return None;
+        }
+        let start = b.alpha[0].max(e0);
+        let end = b.alpha[1].min(e0 + width).max(start);
+        Some(((e0 + (target - m0) / density).clamp(start, end), c))
+    }
+
+    /// Inverts column `c`'s CDF in `β` within `[β0, β1]`: the angle and its row.
+    fn sample_beta(&self, c: usize, beta: [f64; 2], u: f64) -> Option<(f64, usize)> {
+        let nb = self.beta.cells();
+        let cdf = &self.column_cdf[c * (nb + 1)..(c + 1) * (nb + 1)];
+        let t = &self.weights[c * nb..(c + 1) * nb];
+        let (r0, g0) = self.beta.locate(beta[0]);
+        let (r1, g1) = self.beta.locate(beta[1]);
+        let f0 = cdf[r0] + g0 * (cdf[r0 + 1] - cdf[r0]);
+        let f1 = cdf[r1] + g1 * (cdf[r1 + 1] - cdf[r1]);
+        let target = f0 + u * (f1 - f0);
+        // The first row whose upper edge's running integral passes the target.
+        let r = (r0 + cdf[r0 + 1..=r1 + 1].partition_point(|&f| f <= target)).min(r1);
+        let e0 = self.beta.edges[r];
+        let start = beta[0].max(e0);
+        let end = beta[1].min(self.beta.edges[r + 1]).max(start);
+        let weight = t[r];
+        (weight > 0.0).then(|| ((e0 + (target - cdf[r]) / weight).clamp(start, end), r))
+    }
+}
+
+impl Axis {
+    /// The base interval fine cell `i` lies in.
+    fn base_of(&self, i: usize) -> usize {
+        self.first.partition_point(|&f| f <= i) - 1
+    }
+}
+
+/// Which base intervals to refine: those whose misplaceable mass exceeds [`REFINE_SHARE`] of
+/// `total`, the [`MAX_REFINED`] largest at most, each widened by one interval on either side
+/// (a jump that the supersamples of one cell missed shows in its neighbour's).
+fn refined(spread: &[f64], total: f64) -> Vec<bool> {
+    let mut order: Vec<usize> = (0..spread.len())
+        .filter(|&i| spread[i] > REFINE_SHARE * total)
+        .collect();
+    order.sort_by(|&a, &b| spread[b].total_cmp(&spread[a]));
+    order.truncate(MAX_REFINED);
+    let mut fine = vec![false; spread.len()];
+    for i in order {
+        for j in i.saturating_sub(1)..=(i + 1).min(spread.len() - 1) {
+            fine[j] = true;
+        }
+    }
+    fine
+}
