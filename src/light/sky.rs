@@ -17,6 +17,9 @@ use super::estimator::MAX_TERMS;
 use super::window::{GuidedBox, Window};
 use super::{LightSet, Strategy, Technique};
 use crate::sampling::pick_by_weight;
+
+/// The largest f32 below 1: a stretched uniform number stays in [0, 1).
+const ONE_BELOW: f32 = 1.0 - f32::EPSILON / 2.0;
 use crate::sampling::spherical::SphericalPolygon;
 
 /// How one direction towards the sky is drawn.
@@ -223,7 +226,8 @@ impl SkySampler {
         }
     }
 
-    /// Draws a direction from the mixture; `None` when the drawn share draws nothing (a guided
+    /// Draws a direction from the mixture: the share by `u.x` (stretched back to a uniform
+    /// number), the window by `u_technique`, the direction by `u`; `None` when the drawn share draws nothing (a guided
     /// draw outside its window, an edge-on window) or the scene has no environment.
     pub fn sample(
         &self,
@@ -234,22 +238,28 @@ impl SkySampler {
     ) -> Option<SkySample> {
         let env = scene.environment()?;
         let x = ctx.x;
-        // The window drawn from, if any: its term's density is the one its draw computed.
-        let (technique, drawn, (wi, technique_pdf)) =
-            if !ctx.uses_windows || u_technique < ctx.alpha {
-                (SkyTechnique::Environment, None, env.sample(u)?)
-            } else {
-                let v = (u_technique - ctx.alpha) / (1.0 - ctx.alpha);
-                let term = pick_by_weight(&ctx.terms, |t| t.weight, v)?;
-                let window = &scene.windows()[term.window];
-                let sampled = match term.technique {
-                    SkyTechnique::Environment => env.sample(u)?,
-                    SkyTechnique::WindowArea => window.sample_area(x, u)?,
-                    SkyTechnique::SolidAngle => term.spherical.as_ref()?.sample(u)?,
-                    SkyTechnique::Guided => window.sample_guided(term.guided.as_ref()?, x, u)?,
-                };
-                (term.technique, Some(term.window), sampled)
+        // The share (environment or windows) is picked by `u.x`, which is then stretched back
+        // to [0, 1): both shares draw from stratified 2D points, so that under Sobol' points
+        // the count of draws that find the sun is stratified in each (a separate `u_technique`
+        // would pick a random subset of the points for each share). `u_technique` picks the
+        // window among several.
+        let (technique, drawn, (wi, technique_pdf)) = if !ctx.uses_windows {
+            (SkyTechnique::Environment, None, env.sample(u)?)
+        } else if u.x < ctx.alpha {
+            let u = Vec2::new((u.x / ctx.alpha).min(ONE_BELOW), u.y);
+            (SkyTechnique::Environment, None, env.sample(u)?)
+        } else {
+            let u = Vec2::new(((u.x - ctx.alpha) / (1.0 - ctx.alpha)).min(ONE_BELOW), u.y);
+            let term = pick_by_weight(&ctx.terms, |t| t.weight, u_technique)?;
+            let window = &scene.windows()[term.window];
+            let sampled = match term.technique {
+                SkyTechnique::Environment => env.sample(u)?,
+                SkyTechnique::WindowArea => window.sample_area(x, u)?,
+                SkyTechnique::SolidAngle => term.spherical.as_ref()?.sample(u)?,
+                SkyTechnique::Guided => window.sample_guided(term.guided.as_ref()?, x, u)?,
             };
+            (term.technique, Some(term.window), sampled)
+        };
         // One pixel lookup gives the radiance and the environment's density.
         let (le, p_env) = env.radiance_pdf(wi);
         let pdf = if ctx.uses_windows {
