@@ -57,9 +57,115 @@ impl Tiles {
     }
 }
 
+/// The instruction sets the tile renderer is compiled for. One build runs on any x86-64: the
+/// renderer (traversal, shading and sampling, all inlined into it) is compiled twice, and the
+/// variant for the CPU at hand is chosen at run time. Both give the same pixels, bit for bit:
+/// Rust never fuses a multiply and an add unless asked (`mul_add`, correctly rounded either way).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Isa {
+    /// x86-64's SSE2 (or whatever the target's baseline is).
+    Baseline,
+    /// AVX2 and FMA (x86-64-v3).
+    Avx2Fma,
+}
+
+impl Isa {
+    /// The best variant this CPU runs, chosen once; `PORTALVIEW_ISA=baseline` in the
+    /// environment forces the baseline (to measure what the dispatch gains).
+    pub fn detect() -> Isa {
+        static DETECTED: std::sync::OnceLock<Isa> = std::sync::OnceLock::new();
+        *DETECTED.get_or_init(|| {
+            let forced = std::env::var("PORTALVIEW_ISA").is_ok_and(|v| v == "baseline");
+            if !forced && Isa::Avx2Fma.available() {
+                Isa::Avx2Fma
+            } else {
+                Isa::Baseline
+            }
+        })
+    }
+
+    /// Whether this CPU can run the variant.
+    pub fn available(self) -> bool {
+        match self {
+            Isa::Baseline => true,
+            #[cfg(target_arch = "x86_64")]
+            Isa::Avx2Fma => is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma"),
+            #[cfg(not(target_arch = "x86_64"))]
+            Isa::Avx2Fma => false,
+        }
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Isa::Baseline => "baseline",
+            Isa::Avx2Fma => "avx2+fma",
+        }
+    }
+}
+
 /// One sample for each pixel of tile `tile`, row by row, every ray traced through `tracer`.
 /// Each pixel's random numbers depend only on (sampler, seed, pass, pixel).
 pub fn render_tile<T: Tracer>(
+    integrator: &Integrator,
+    tracer: &T,
+    rays: &RayGenerator,
+    tiles: Tiles,
+    tile: u32,
+    pass: u32,
+    stats: &mut Stats,
+) -> Vec<Vec3> {
+    render_tile_isa(
+        Isa::detect(),
+        integrator,
+        tracer,
+        rays,
+        tiles,
+        tile,
+        pass,
+        stats,
+    )
+}
+
+/// [`render_tile`] compiled for `isa`, or for the baseline if this CPU cannot run it.
+#[allow(clippy::too_many_arguments)]
+pub fn render_tile_isa<T: Tracer>(
+    isa: Isa,
+    integrator: &Integrator,
+    tracer: &T,
+    rays: &RayGenerator,
+    tiles: Tiles,
+    tile: u32,
+    pass: u32,
+    stats: &mut Stats,
+) -> Vec<Vec3> {
+    #[cfg(target_arch = "x86_64")]
+    if isa == Isa::Avx2Fma && isa.available() {
+        // SAFETY: the CPU has AVX2 and FMA, checked just above.
+        #[allow(unsafe_code)]
+        return unsafe { render_tile_avx2(integrator, tracer, rays, tiles, tile, pass, stats) };
+    }
+    let _ = isa;
+    tile_samples(integrator, tracer, rays, tiles, tile, pass, stats)
+}
+
+/// [`tile_samples`] with AVX2 and FMA: everything it inlines is compiled with them.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+fn render_tile_avx2<T: Tracer>(
+    integrator: &Integrator,
+    tracer: &T,
+    rays: &RayGenerator,
+    tiles: Tiles,
+    tile: u32,
+    pass: u32,
+    stats: &mut Stats,
+) -> Vec<Vec3> {
+    tile_samples(integrator, tracer, rays, tiles, tile, pass, stats)
+}
+
+/// The body of [`render_tile`], inlined into each instruction-set variant.
+#[inline(always)]
+fn tile_samples<T: Tracer>(
     integrator: &Integrator,
     tracer: &T,
     rays: &RayGenerator,
