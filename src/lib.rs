@@ -16,7 +16,7 @@
 //! cli                              command-line parsing and the subcommands (nothing imports it)
 //! ```
 
-// One `unsafe` call in the crate: the tile renderer compiled for AVX2 and FMA, called after the
+// `unsafe` in one place: the tile renderer compiled for AVX2 (x86-64-v3), called only after the
 // CPU was checked for them (`render::render_tile_isa`).
 #![deny(unsafe_code)]
 

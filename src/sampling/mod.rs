@@ -255,6 +255,7 @@ pub fn sample_concentric_disk(u: Vec2) -> Vec2 {
 }
 
 /// Uniform barycentric coordinates (b0, b1) on a triangle (the square-root map).
+#[inline(always)]
 pub fn sample_uniform_triangle(u: Vec2) -> Vec2 {
     let su = u.x.sqrt();
     Vec2::new(1.0 - su, u.y * su)
