@@ -194,9 +194,8 @@ impl GuidedTable {
             1.0
         };
         for w in &mut weights {
-            if !(*w >= floor) {
-                *w = floor;
-            }
+            // Also replaces a NaN (`max` keeps the number).
+            *w = w.max(floor);
         }
         let (ma, mb) = (na + 1, nb + 1);
         let mut column_cdf = vec![0.0; na * mb];
@@ -335,9 +334,8 @@ fn refined(spread: &[f64], total: f64) -> Vec<bool> {
     order.truncate(MAX_REFINED);
     let mut fine = vec![false; spread.len()];
     for i in order {
-        for j in i.saturating_sub(1)..=(i + 1).min(spread.len() - 1) {
-            fine[j] = true;
-        }
+        let end = (i + 2).min(spread.len());
+        fine[i.saturating_sub(1)..end].fill(true);
     }
     fine
 }

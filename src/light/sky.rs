@@ -227,8 +227,9 @@ impl SkySampler {
     }
 
     /// Draws a direction from the mixture: the share by `u.x` (stretched back to a uniform
-    /// number), the window by `u_technique`, the direction by `u`; `None` when the drawn share draws nothing (a guided
-    /// draw outside its window, an edge-on window) or the scene has no environment.
+    /// number), the window by `u_technique`, the direction by `u`; `None` when the drawn share
+    /// draws nothing (a guided draw outside its window, an edge-on window) or the scene has no
+    /// environment.
     pub fn sample(
         &self,
         scene: &impl LightSet,
