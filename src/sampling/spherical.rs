@@ -332,7 +332,7 @@ impl SphericalPolygon {
         }
         let half_solid_angle = cumulative.y.atan2(cumulative.x);
         let solid_angle = (2.0 * half_solid_angle) as f32;
-        if !(solid_angle > 0.0 && solid_angle.is_finite()) || self.fan_usable == 0 {
+        if !(solid_angle > 0.0 && solid_angle.is_finite()) {
             self.fan.clear();
             self.fan_usable = 0;
             return false;
