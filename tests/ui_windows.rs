@@ -3,12 +3,15 @@
 //! sky through, Flip and Add window portal work from their buttons, the Environment panel turns
 //! the sky off and on, and a moved window and a changed environment are saved into the glTF.
 
+use clap::Parser;
 use egui_kittest::Harness;
 use egui_kittest::kittest::Queryable;
 use glam::Vec3;
 use portalview::app::PortalViewApp;
+use portalview::cli::{Cli, Command};
 use portalview::light::Strategy;
 use portalview::light::antishadow::Region;
+use portalview::sampling::polygon::ConvexPolygon;
 mod ui_common;
 
 use ui_common::{serial, step_until};
@@ -78,13 +81,187 @@ fn window_strategies_overlay_flip_and_add() {
     let behind = share(primary.shares(Some(0)), Region::Behind);
     assert!(behind > 0.99, "after Flip: {:?}", primary.shares(Some(0)));
 
-    // Add window portal: a new window, selected, valid.
+    // Add window portal, then a click on the north window's opening: a window fitted to it,
+    // selected, facing into the room; undone by Ctrl+Z.
     h.get_by_label("Add window portal").click();
+    h.run_steps(2);
+    assert!(h.state().is_placing_window());
+    let north = polygon(&h.state().scene().unwrap().desc.portals[0]);
+    let at = h.state().image_point(north.centroid()).unwrap();
+    click_at(&mut h, at, egui::PointerButton::Primary);
+    let app = h.state();
+    assert!(!app.is_placing_window());
+    assert_eq!(app.editor.portals.len(), 3);
+    assert!(app.editor.portals[2].is_window());
+    assert_eq!(app.editor.selected, Some(2));
+    assert!(
+        app.message().unwrap().starts_with("window portal fitted"),
+        "{:?}",
+        app.message()
+    );
+    let fitted = polygon(&app.editor.portals[2]);
+    for v in north.vertices() {
+        let d = fitted
+            .vertices()
+            .iter()
+            .map(|f| f.distance(*v))
+            .fold(f32::MAX, f32::min);
+        assert!(d < 2e-3, "corner {v} is {d} m away");
+    }
+    // The opening's own window was flipped above; the fitted one faces the room again.
+    assert!(fitted.normal().abs_diff_eq(Vec3::Z, 1e-4));
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Z);
+    h.run_steps(2);
+    assert_eq!(h.state().editor.portals.len(), 2);
+
+    // Right-click on a plain wall, Add window portal here: no opening, so the default square
+    // at the camera's target, and a message that says so.
+    // (Below the north window: the tall window's image is narrow.)
+    let wall = h.state().image_point(Vec3::new(0.0, 0.4, -2.0)).unwrap();
+    click_at(&mut h, wall, egui::PointerButton::Secondary);
+    h.get_by_label("Add window portal here").click();
     h.run_steps(2);
     let app = h.state();
     assert_eq!(app.editor.portals.len(), 3);
     assert!(app.editor.portals[2].is_window());
-    assert_eq!(app.editor.selected, Some(2));
+    assert!(
+        app.message()
+            .unwrap()
+            .starts_with("no window opening there"),
+        "{:?}",
+        app.message()
+    );
+    let square = polygon(&app.editor.portals[2]);
+    assert!((square.area() - 1.0).abs() < 1e-4);
+    assert!(
+        square
+            .centroid()
+            .abs_diff_eq(app.scene().unwrap().camera.target, 1e-4)
+    );
+}
+
+fn polygon(portal: &portalview::asset::desc::PortalDesc) -> ConvexPolygon {
+    ConvexPolygon::from_triangles(&portal.world_triangles()).unwrap()
+}
+
+/// A press and release of `button` at `pos`, with the pointer moved there first.
+fn click_at(h: &mut Harness<'static, PortalViewApp>, pos: egui::Pos2, button: egui::PointerButton) {
+    h.hover_at(pos);
+    h.step();
+    for pressed in [true, false] {
+        h.event(egui::Event::PointerButton {
+            pos,
+            button,
+            pressed,
+            modifiers: egui::Modifiers::NONE,
+        });
+        h.step();
+    }
+    h.run_steps(2);
+}
+
+/// `portalview view window --environment 0.3,0.5,0.7 --environment-strength 2
+/// --environment-rotation -30`: the start-up scene's environment is the command line's (over
+/// the scene's built-in sky), and the Environment panel says it is not the file's.
+fn app_from_command_line(args: &[&str]) -> Harness<'static, PortalViewApp> {
+    let cli = Cli::try_parse_from(args).unwrap();
+    let Some(Command::View(view)) = cli.command else {
+        panic!("not a view command");
+    };
+    let options: portalview::app::ViewOptions = view.into();
+    let mut h = Harness::builder()
+        .with_size(egui::vec2(1100.0, 1500.0))
+        .wgpu()
+        .build_eframe(move |cc| PortalViewApp::with_options(&cc.egui_ctx, None, options).unwrap());
+    step_until(&mut h, "the first scene", |a| {
+        a.scene().is_some() && !a.is_busy()
+    });
+    h
+}
+
+const VIEW_WITH_SKY: [&str; 9] = [
+    "portalview",
+    "view",
+    "window",
+    "--environment",
+    "0.3,0.5,0.7",
+    "--environment-strength",
+    "2",
+    "--environment-rotation",
+    "-30",
+];
+
+#[test]
+fn view_takes_the_environment_flags() {
+    let _serial = serial();
+    let mut h = app_from_command_line(&VIEW_WITH_SKY);
+    let environment = h.state().scene().unwrap().desc.environment.clone().unwrap();
+    assert_eq!(
+        environment.map,
+        portalview::asset::environment::EnvMap::Constant(Vec3::new(0.3, 0.5, 0.7))
+    );
+    assert_eq!(environment.strength, 2.0);
+    assert_eq!(environment.rotation_degrees, -30.0);
+    assert!(h.state().scene().unwrap().environment.is_some());
+    h.run_steps(2);
+    h.get_by_label("unsaved environment (File > Save as .glb…)");
+    // Only a strength: the scene's own sky, stronger.
+    let h = app_from_command_line(&[
+        "portalview",
+        "view",
+        "window",
+        "--environment-strength",
+        "3",
+    ]);
+    let environment = h.state().scene().unwrap().desc.environment.clone().unwrap();
+    assert!(matches!(
+        environment.map,
+        portalview::asset::environment::EnvMap::Image { file: None, .. }
+    ));
+    assert_eq!(environment.strength, 3.0);
+    // A broken one: the error names the file, and the viewer falls back to the default scene.
+    let h = app_from_command_line(&[
+        "portalview",
+        "view",
+        "window",
+        "--environment",
+        "/nonexistent/sky.hdr",
+    ]);
+    assert!(
+        h.state()
+            .message()
+            .unwrap()
+            .contains("/nonexistent/sky.hdr")
+    );
+}
+
+/// Holding the pointer over the image with the Statistics open (and a constant sky, whose
+/// colour button is drawn every frame) must not restart the render: its numbers change every
+/// frame, and a line wider than the panel used to widen it, resize the image and restart
+/// accumulation, so spp never grew.
+#[test]
+fn hovering_the_image_keeps_accumulating() {
+    let _serial = serial();
+    let mut h = app_from_command_line(&VIEW_WITH_SKY);
+    h.get_by_label("Statistics").click();
+    h.run_steps(2);
+    let window = polygon(&h.state().scene().unwrap().desc.portals[0]);
+    let over = h
+        .state()
+        .image_point(window.centroid() - Vec3::new(0.0, 1.0, 0.0))
+        .unwrap();
+    h.hover_at(over);
+    step_until(&mut h, "first frame", has_full_frame);
+    let first = h.state().frame().unwrap().clone();
+    // A statistic far wider than the panel (a slow first frame).
+    h.state_mut().first_frame_latency = Some(std::time::Duration::from_secs(1_000_000_000));
+    step_until(&mut h, "four more passes", |a| {
+        let f = a.frame().unwrap();
+        assert_eq!(f.generation, first.generation, "the render restarted");
+        f.spp >= first.spp + 4
+    });
+    // The pointer is still over the image: the inspector shows.
+    h.get_by_label_contains("antishadow uses");
 }
 
 #[test]

@@ -7,6 +7,7 @@ use crate::asset::environment::ENVIRONMENT_TARGET;
 use crate::camera::Camera;
 use crate::sampling::polygon::ConvexPolygon;
 use crate::scene::Scene;
+use crate::scene::opening::Opening;
 
 /// A portal's placement: `world_from_local = T(center) · R · S · T(-local_center)`, so that
 /// moving, turning and resizing all happen about the portal's own centre.
@@ -173,6 +174,18 @@ impl PortalEditor {
             .into_iter()
             .map(|(a, b)| c + a * tangent + b * bitangent)
             .collect();
+        self.push_window(&corners)
+    }
+
+    /// Adds a window portal onto the environment filling a fitted opening, its front facing
+    /// into the room, and selects it.
+    pub fn add_window_in(&mut self, opening: &Opening) -> Option<usize> {
+        self.push_window(&opening.corners)
+    }
+
+    /// Adds a window portal with these corners (counter-clockwise about its front) and
+    /// selects it (one undo step).
+    fn push_window(&mut self, corners: &[Vec3]) -> Option<usize> {
         let taken = |name: &str| self.portals.iter().any(|p| p.name == name);
         let name = (1..)
             .map(|k| format!("window_{k}"))
@@ -182,7 +195,7 @@ impl PortalEditor {
         self.portals.push(PortalDesc::from_polygon(
             name,
             ENVIRONMENT_TARGET.to_owned(),
-            &corners,
+            corners,
         ));
         self.selected = Some(self.portals.len() - 1);
         self.selected

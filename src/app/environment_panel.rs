@@ -71,33 +71,43 @@ impl PortalViewApp {
         let Some(mut edited) = environment.clone() else {
             return;
         };
+        // An edit is what a widget reports as changed, never a comparison of values: the colour
+        // button's round trip through HSV moves a colour by a rounding error each frame, and a
+        // NaN never equals itself, so comparing restarted the render on every frame.
+        let mut changed = false;
         egui::Grid::new("environment fields")
             .num_columns(2)
             .show(ui, |ui| {
                 if let EnvMap::Constant(c) = &mut edited.map {
                     ui.label("colour");
                     let mut rgb = c.to_array();
-                    ui.color_edit_button_rgb(&mut rgb);
-                    *c = glam::Vec3::from_array(rgb);
+                    if ui.color_edit_button_rgb(&mut rgb).changed() {
+                        *c = glam::Vec3::from_array(rgb);
+                        changed = true;
+                    }
                     ui.end_row();
                 }
                 let label = ui.label("strength");
-                ui.add(
-                    egui::Slider::new(&mut edited.strength, 0.0..=100.0)
-                        .logarithmic(true)
-                        .smallest_positive(0.01),
-                )
-                .labelled_by(label.id);
+                changed |= ui
+                    .add(
+                        egui::Slider::new(&mut edited.strength, 0.0..=100.0)
+                            .logarithmic(true)
+                            .smallest_positive(0.01),
+                    )
+                    .labelled_by(label.id)
+                    .changed();
                 ui.end_row();
                 let label = ui.label("rotation °");
-                ui.add(egui::Slider::new(
-                    &mut edited.rotation_degrees,
-                    -180.0..=180.0,
-                ))
-                .labelled_by(label.id);
+                changed |= ui
+                    .add(egui::Slider::new(
+                        &mut edited.rotation_degrees,
+                        -180.0..=180.0,
+                    ))
+                    .labelled_by(label.id)
+                    .changed();
                 ui.end_row();
             });
-        if Some(&edited) != environment.as_ref() {
+        if changed {
             commands.push(Command::Environment(EnvironmentEdit::Set(Some(edited))));
         }
         if self.environment_dirty {

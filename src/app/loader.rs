@@ -6,14 +6,19 @@ use std::path::PathBuf;
 use std::sync::mpsc::{Receiver, TryRecvError};
 
 use crate::asset::desc::{PortalDesc, SceneDesc};
-use crate::asset::environment::{EnvMap, load_image};
+use crate::asset::environment::{EnvMap, EnvironmentOverrides, load_image};
 use crate::asset::gltf;
 use crate::scene::Scene;
 
 /// What a finished job produced.
 pub(super) enum Done {
-    /// A scene opened by built-in name or path.
-    Opened { name: String, scene: Scene },
+    /// A scene opened by built-in name or path; `environment_replaced`: its environment is
+    /// the command line's, not its file's.
+    Opened {
+        name: String,
+        scene: Scene,
+        environment_replaced: bool,
+    },
     /// The portals written to `path`, and the file read back (so that new portals know their
     /// nodes). `portals` are those written.
     Saved {
@@ -45,10 +50,24 @@ pub(super) struct Job {
 impl Job {
     /// Loads a built-in scene or a `.gltf`/`.glb` file.
     pub fn open(name: String, ctx: &egui::Context) -> Job {
+        Job::open_with_environment(name, EnvironmentOverrides::default(), ctx)
+    }
+
+    /// Loads a scene and replaces its environment as the command line says.
+    pub fn open_with_environment(
+        name: String,
+        environment: EnvironmentOverrides,
+        ctx: &egui::Context,
+    ) -> Job {
         let what = format!("opening {name}");
         Job::spawn(what, ctx, move || {
-            let scene = Scene::open(&name).map_err(|e| e.to_string())?;
-            Ok(Done::Opened { name, scene })
+            let scene =
+                Scene::open_with_environment(&name, &environment).map_err(|e| e.to_string())?;
+            Ok(Done::Opened {
+                name,
+                scene,
+                environment_replaced: !environment.is_empty(),
+            })
         })
     }
 

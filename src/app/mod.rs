@@ -26,12 +26,14 @@ use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 use crate::asset::desc::PortalDesc;
+use crate::asset::environment::EnvironmentOverrides;
 use crate::camera::Camera;
 use crate::light::Strategy;
 use crate::render::integrator::RenderSettings;
 use crate::render::worker::{Frame, RenderHandle, RenderRequest};
 use crate::sampling::SamplerKind;
 use crate::scene::Scene;
+use crate::scene::opening::fit_opening;
 use compare_view::CompareView;
 use edit::PortalEditor;
 use environment_panel::EnvironmentEdit;
@@ -60,8 +62,14 @@ enum Command {
     /// Save the scene and its portals as a new `.glb`.
     SaveAs(PathBuf),
     AddPortal(usize),
-    /// Add a window portal onto the environment, facing the camera.
+    /// Wait for a click on the image, then add a window portal in the opening there.
     AddWindow,
+    /// Add a window portal fitted to the opening under the image point `ndc` (normalised
+    /// coordinates of an image of aspect `aspect`), or a default one if there is none.
+    AddWindowAt {
+        ndc: glam::Vec2,
+        aspect: f32,
+    },
     /// Turn a window portal's front over.
     FlipPortal(usize),
     /// Change the environment.
@@ -138,6 +146,12 @@ pub struct PortalViewApp {
     /// Recent UI frame times (time spent in `show`).
     frame_times: VecDeque<Duration>,
     gizmo: gizmo::Gizmo,
+    /// *Add window portal* was pressed: the next click on the image says where the opening is.
+    placing_window: bool,
+    /// Where the image was last right-clicked (its context menu's point).
+    context_point: Option<egui::Pos2>,
+    /// Where the image was last drawn.
+    image_rect: Option<egui::Rect>,
     /// Render or compare (not persisted: the viewer starts rendering).
     mode: ViewMode,
     compare: CompareView,
@@ -153,16 +167,39 @@ impl PortalViewApp {
         storage: Option<&dyn eframe::Storage>,
         scene: Option<String>,
     ) -> Result<Self> {
+        Self::with_options(
+            ctx,
+            storage,
+            ViewOptions {
+                scene,
+                ..ViewOptions::default()
+            },
+        )
+    }
+
+    /// The viewer as `portalview view` starts it: the options override what was used last,
+    /// and the start-up scene's environment is replaced as they say.
+    pub fn with_options(
+        ctx: &egui::Context,
+        storage: Option<&dyn eframe::Storage>,
+        options: ViewOptions,
+    ) -> Result<Self> {
         let mut settings: ViewerSettings = storage
             .and_then(|s| eframe::get_value(s, eframe::APP_KEY))
             .unwrap_or_default();
-        if let Some(scene) = scene {
+        if let Some(scene) = options.scene {
             settings.scene = scene;
         }
+        settings.strategy = options.strategy.unwrap_or(settings.strategy);
+        settings.overlay = options.overlay.unwrap_or(settings.overlay);
+        settings.max_depth = options.max_depth.unwrap_or(settings.max_depth).max(1);
+        settings.sampler = options.sampler.unwrap_or(settings.sampler);
+        settings.show_volumes |= options.volumes;
         let repaint = ctx.clone();
         let renderer = RenderHandle::spawn(0, Box::new(move || repaint.request_repaint()))?;
+        let job = Job::open_with_environment(settings.scene.clone(), options.environment, ctx);
         Ok(PortalViewApp {
-            job: Some(Job::open(settings.scene.clone(), ctx)),
+            job: Some(job),
             settings,
             current: None,
             editor: PortalEditor::default(),
@@ -179,6 +216,9 @@ impl PortalViewApp {
             first_frame_latency: None,
             frame_times: VecDeque::new(),
             gizmo: gizmo::Gizmo::default(),
+            placing_window: false,
+            context_point: None,
+            image_rect: None,
             mode: ViewMode::Render,
             compare: CompareView::default(),
             ctx: ctx.clone(),
@@ -332,7 +372,11 @@ impl PortalViewApp {
         };
         self.job = None;
         match result {
-            Ok(Done::Opened { name, scene }) => {
+            Ok(Done::Opened {
+                name,
+                scene,
+                environment_replaced,
+            }) => {
                 // What the file holds that is not read is said, not dropped in silence.
                 // (Kept apart from an earlier error, such as the one a fallback scene follows.)
                 let warnings = &scene.desc.warnings;
@@ -340,6 +384,8 @@ impl PortalViewApp {
                     self.message = Some(warnings.join("\n"));
                 }
                 self.show_scene(scene, name);
+                // The command line's sky is not the file's: saving writes it, as the panel says.
+                self.environment_dirty = environment_replaced;
                 self.restart();
             }
             Ok(Done::Saved {
@@ -425,6 +471,46 @@ impl PortalViewApp {
         );
     }
 
+    /// Adds a window portal fitted to the opening under the image point `ndc`; where there is
+    /// none, the default square at the camera's target, and says so. Whether one was added.
+    fn add_window_at(&mut self, ndc: glam::Vec2, aspect: f32) -> bool {
+        let Some(current) = &self.current else {
+            return false;
+        };
+        match fit_opening(&current.scene, &current.camera, ndc, aspect) {
+            Some(opening) => {
+                self.message = Some(format!(
+                    "window portal fitted to the opening: {:.3} × {:.3} m",
+                    opening.size.x, opening.size.y
+                ));
+                self.editor.add_window_in(&opening).is_some()
+            }
+            None => {
+                self.message = Some(
+                    "no window opening there (a hole with the wall around it): placed a 1 m \
+                     window at the camera's target, facing the camera; move it into the \
+                     opening with the gizmo"
+                        .into(),
+                );
+                self.editor.add_window(&current.camera).is_some()
+            }
+        }
+    }
+
+    /// Where the world point `p` is on screen, through the camera, in the image as last drawn.
+    pub fn image_point(&self, p: glam::Vec3) -> Option<egui::Pos2> {
+        let projector = viewport::Projector {
+            camera: self.current.as_ref()?.camera,
+            rect: self.image_rect?,
+        };
+        projector.point(p)
+    }
+
+    /// Whether the viewer waits for a click on the image to add a window portal there.
+    pub fn is_placing_window(&self) -> bool {
+        self.placing_window
+    }
+
     /// The mean UI frame time over recent frames.
     fn mean_frame_time(&self) -> Option<Duration> {
         let n = self.frame_times.len() as u32;
@@ -466,6 +552,9 @@ impl PortalViewApp {
             if i.modifiers.command && i.key_pressed(egui::Key::Y) {
                 commands.push(Command::Redo);
             }
+            if i.key_pressed(egui::Key::Escape) {
+                self.placing_window = false;
+            }
             if i.key_pressed(egui::Key::Delete)
                 && let Some(s) = self.editor.selected
             {
@@ -498,10 +587,10 @@ impl PortalViewApp {
                         edited |= self.editor.add_for_light(&current.scene, light).is_some();
                     }
                 }
-                Command::AddWindow => {
-                    if let Some(current) = &self.current {
-                        edited |= self.editor.add_window(&current.camera).is_some();
-                    }
+                Command::AddWindow => self.placing_window = true,
+                Command::AddWindowAt { ndc, aspect } => {
+                    self.placing_window = false;
+                    edited |= self.add_window_at(ndc, aspect);
                 }
                 Command::FlipPortal(i) => edited |= self.editor.flip(i),
                 Command::Environment(edit) => self.apply_environment(edit),
@@ -585,6 +674,8 @@ pub struct ViewOptions {
     pub volumes: bool,
     pub max_depth: Option<u32>,
     pub sampler: Option<SamplerKind>,
+    /// Replaces the start-up scene's environment (the command line's `--environment…`).
+    pub environment: EnvironmentOverrides,
 }
 
 /// Opens the viewer window (blocks until it closes).
@@ -600,13 +691,7 @@ pub fn run_viewer(args: ViewOptions) -> Result<()> {
         "portalview",
         options,
         Box::new(move |cc| {
-            let mut app = PortalViewApp::new(&cc.egui_ctx, cc.storage, args.scene)?;
-            let s = &mut app.settings;
-            s.strategy = args.strategy.unwrap_or(s.strategy);
-            s.overlay = args.overlay.unwrap_or(s.overlay);
-            s.max_depth = args.max_depth.unwrap_or(s.max_depth).max(1);
-            s.sampler = args.sampler.unwrap_or(s.sampler);
-            s.show_volumes |= args.volumes;
+            let app = PortalViewApp::with_options(&cc.egui_ctx, cc.storage, args)?;
             Ok(Box::new(app))
         }),
     )

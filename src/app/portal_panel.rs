@@ -12,6 +12,7 @@ impl PortalViewApp {
             current,
             editor,
             overlay_portal,
+            placing_window,
             ..
         } = self;
         let Some(current) = current else {
@@ -46,10 +47,13 @@ impl PortalViewApp {
         ui.vertical(|ui| {
             if ui
                 .button("Add window portal")
-                .on_hover_text("A window onto the environment at the camera's target, facing the camera; move it into the opening")
+                .on_hover_text("Then click a window opening (a hole in a wall) in the image: the window portal is fitted to it, facing into the room; where there is none, a 1 m square at the camera's target. Also: right-click the image")
                 .clicked()
             {
                 commands.push(Command::AddWindow);
+            }
+            if *placing_window {
+                ui.label("click a window opening in the image (Esc cancels)");
             }
             for (i, light) in current.scene.geometry.lights.iter().enumerate() {
                 if ui
@@ -67,10 +71,11 @@ impl PortalViewApp {
         let Some(mut pose) = editor.pose(i) else {
             return;
         };
-        let before = pose;
         let (mut ex, mut ey, mut ez) = pose.rotation.to_euler(glam::EulerRot::XYZ);
-        let (ex0, ey0, ez0) = (ex, ey, ez);
         let mut gesture = false;
+        // What the widgets report as changed, never a comparison of values (a NaN never equals
+        // itself, and a comparison that always differs restarts the render every frame).
+        let (mut moved, mut turned) = (false, false);
         let mut alpha = editor.portals[i].alpha;
         egui::Grid::new("portal fields")
             .num_columns(2)
@@ -88,6 +93,7 @@ impl PortalViewApp {
                                 .prefix(format!("{axis} ")),
                         );
                         gesture |= r.drag_started() || r.gained_focus();
+                        moved |= r.changed();
                     }
                 });
                 ui.end_row();
@@ -101,7 +107,10 @@ impl PortalViewApp {
                                 .prefix(format!("{axis} ")),
                         );
                         gesture |= r.drag_started() || r.gained_focus();
-                        *v = deg.to_radians();
+                        if r.changed() {
+                            *v = deg.to_radians();
+                            turned = true;
+                        }
                     }
                 });
                 ui.end_row();
@@ -113,6 +122,7 @@ impl PortalViewApp {
                 gesture |= r.drag_started() || r.gained_focus();
                 if r.changed() {
                     pose.scale *= s / pose.scale.max_element().max(1e-6);
+                    moved = true;
                 }
                 ui.end_row();
                 let label = ui.label("alpha");
@@ -120,15 +130,16 @@ impl PortalViewApp {
                     .add(egui::Slider::new(&mut alpha, 0.0..=1.0))
                     .labelled_by(label.id);
                 gesture |= r.drag_started() || r.gained_focus();
+                moved |= r.changed();
                 ui.end_row();
             });
-        if (ex, ey, ez) != (ex0, ey0, ez0) {
+        if turned {
             pose.rotation = Quat::from_euler(glam::EulerRot::XYZ, ex, ey, ez);
         }
         if gesture {
             editor.checkpoint();
         }
-        if pose != before || alpha != editor.portals[i].alpha {
+        if moved || turned {
             editor.set_pose(i, pose);
             editor.portals[i].alpha = alpha;
             commands.push(Command::PortalEdited);

@@ -16,7 +16,11 @@ impl PortalViewApp {
             .resizable(true)
             .default_size(330.0)
             .show(ui, |ui| {
-                egui::ScrollArea::vertical().show(ui, |ui| {
+                // Scrolls both ways, so that the panel's width is the user's (its dragged edge)
+                // and never its content's: a line wider than the panel (the statistics, which
+                // change every frame) would otherwise widen it, move the image's edge, and every
+                // such move resizes and restarts the render. Text still wraps to the width.
+                egui::ScrollArea::both().show(ui, |ui| {
                     notice(ui, &mut self.message);
                     egui::CollapsingHeader::new("Render")
                         .default_open(true)

@@ -43,13 +43,19 @@ impl Projector {
         self.rect.min + egui::vec2(ndc.x * self.rect.width(), ndc.y * self.rect.height())
     }
 
-    /// The camera ray through a screen point.
-    pub fn ray(&self, pos: Pos2) -> (Vec3, Vec3) {
+    /// A screen point in normalised image coordinates, and the image's aspect ratio.
+    pub fn ndc(&self, pos: Pos2) -> (Vec2, f32) {
         let ndc = Vec2::new(
             (pos.x - self.rect.min.x) / self.rect.width(),
             (pos.y - self.rect.min.y) / self.rect.height(),
         );
-        self.camera.ray(ndc, self.aspect())
+        (ndc, self.aspect())
+    }
+
+    /// The camera ray through a screen point.
+    pub fn ray(&self, pos: Pos2) -> (Vec3, Vec3) {
+        let (ndc, aspect) = self.ndc(pos);
+        self.camera.ray(ndc, aspect)
     }
 }
 
@@ -184,6 +190,7 @@ impl PortalViewApp {
             commands.push(Command::Restart);
         }
         let (rect, response) = ui.allocate_exact_size(available, Sense::click_and_drag());
+        self.image_rect = Some(rect);
         let painter = ui.painter_at(rect);
         painter.rect_filled(rect, 0.0, Color32::BLACK);
         let Self {
@@ -194,6 +201,8 @@ impl PortalViewApp {
             settings,
             overlay_portal,
             job,
+            placing_window,
+            context_point,
             ..
         } = self;
         let Some(current) = current else {
@@ -249,8 +258,47 @@ impl PortalViewApp {
                 }
             }
         }
+        // Adding a window portal: a click on the image says where its opening is.
+        if *placing_window {
+            painter.text(
+                rect.center_top() + egui::vec2(0.0, 12.0),
+                egui::Align2::CENTER_TOP,
+                "Click a window opening to fit a window portal to it (Esc cancels)",
+                egui::FontId::proportional(15.0),
+                Color32::from_rgb(255, 230, 80),
+            );
+            if response.hovered() {
+                ui.ctx().set_cursor_icon(egui::CursorIcon::Crosshair);
+            }
+        }
+        if *placing_window
+            && response.clicked()
+            && let Some(pos) = response.interact_pointer_pos()
+        {
+            let (ndc, aspect) = projector.ndc(pos);
+            commands.push(Command::AddWindowAt { ndc, aspect });
+        }
+        // A right click opens the image's menu, for the point clicked.
+        if response.secondary_clicked() {
+            *context_point = response.interact_pointer_pos();
+        }
+        response.context_menu(|ui| {
+            if ui
+                .button("Add window portal here")
+                .on_hover_text(
+                    "A window portal fitted to the opening (a hole in a wall) under this point",
+                )
+                .clicked()
+                && let Some(pos) = *context_point
+            {
+                let (ndc, aspect) = projector.ndc(pos);
+                commands.push(Command::AddWindowAt { ndc, aspect });
+                ui.close();
+            }
+        });
         // A click on a portal's outline selects it.
         if response.clicked()
+            && !*placing_window
             && let Some(pos) = response.interact_pointer_pos()
             && let Some(i) = current.portal_under(editor, &projector, pos)
         {

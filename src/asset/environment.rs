@@ -249,6 +249,37 @@ pub fn image_bytes(path: &Path, image: &EnvImage) -> Result<Vec<u8>, String> {
     }
 }
 
+/// What the command line's `--environment FILE|R,G,B`, `--environment-strength S` and
+/// `--environment-rotation DEG` (of `render`, `compare` and `view`) replace in a scene's
+/// environment; each `None` keeps the scene's.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct EnvironmentOverrides {
+    /// `R,G,B` or an image file, relative to the working folder.
+    pub source: Option<String>,
+    pub strength: Option<f32>,
+    pub rotation_degrees: Option<f32>,
+}
+
+impl EnvironmentOverrides {
+    /// Whether nothing is replaced.
+    pub fn is_empty(&self) -> bool {
+        self.source.is_none() && self.strength.is_none() && self.rotation_degrees.is_none()
+    }
+
+    /// `current` with these replacements (see [`with_overrides`]).
+    pub fn apply(
+        &self,
+        current: Option<&EnvironmentDesc>,
+    ) -> Result<Option<EnvironmentDesc>, EnvironmentError> {
+        with_overrides(
+            current,
+            self.source.as_deref(),
+            self.strength,
+            self.rotation_degrees,
+        )
+    }
+}
+
 /// The environment after command-line overrides: `source` (`R,G,B` or an image file, relative
 /// to the working folder) replaces the scene's map, `strength` and `rotation_degrees` its
 /// numbers. Without a map from either, numbers alone are an error.

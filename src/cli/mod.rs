@@ -16,6 +16,7 @@ pub use compare::CompareArgs;
 pub use render::RenderArgs;
 pub use view::ViewArgs;
 
+use crate::asset::environment::EnvironmentOverrides;
 use crate::sampling::SamplerKind;
 use crate::scene::Scene;
 
@@ -63,21 +64,9 @@ pub fn run(command: Command) -> Result<()> {
 /// Opens a built-in scene or a glTF file with the command line's environment, printing on
 /// stderr what the file holds that is not read.
 fn open_scene(name: &str, environment: &EnvironmentArgs) -> Result<Scene> {
-    let mut scene = Scene::open(name)?;
+    let scene = Scene::open_with_environment(name, &environment.into())?;
     for warning in &scene.desc.warnings {
         eprintln!("warning: {warning}");
-    }
-    if environment.environment.is_some()
-        || environment.environment_strength.is_some()
-        || environment.environment_rotation.is_some()
-    {
-        let desc = crate::asset::environment::with_overrides(
-            scene.desc.environment.as_ref(),
-            environment.environment.as_deref(),
-            environment.environment_strength,
-            environment.environment_rotation,
-        )?;
-        scene = scene.with_environment(desc)?;
     }
     Ok(scene)
 }
@@ -96,6 +85,16 @@ pub struct EnvironmentArgs {
     /// (default: the scene's, else 0).
     #[arg(long, value_name = "DEG", allow_negative_numbers = true)]
     pub environment_rotation: Option<f32>,
+}
+
+impl From<&EnvironmentArgs> for EnvironmentOverrides {
+    fn from(a: &EnvironmentArgs) -> Self {
+        EnvironmentOverrides {
+            source: a.environment.clone(),
+            strength: a.environment_strength,
+            rotation_degrees: a.environment_rotation,
+        }
+    }
 }
 
 /// Image options shared by `render` and `compare` (their widths differ in default).

@@ -2,6 +2,7 @@
 
 use clap::Args;
 
+use super::EnvironmentArgs;
 use crate::app::ViewOptions;
 use crate::app::overlay::OverlayKind;
 use crate::light::Strategy;
@@ -27,6 +28,9 @@ pub struct ViewArgs {
     /// last).
     #[arg(long, value_enum)]
     pub sampler: Option<SamplerKind>,
+    /// The start-up scene's sky, as for `render` (replaces the scene's).
+    #[command(flatten)]
+    pub environment: EnvironmentArgs,
 }
 
 impl From<ViewArgs> for ViewOptions {
@@ -38,6 +42,7 @@ impl From<ViewArgs> for ViewOptions {
             volumes: a.volumes,
             max_depth: a.max_depth,
             sampler: a.sampler,
+            environment: (&a.environment).into(),
         }
     }
 }

@@ -1,6 +1,7 @@
 //! Scenes: what is authored (glTF, built-ins), validated and made ready to trace.
 
 pub mod bvh;
+pub mod opening;
 
 use glam::{Vec2, Vec3, Vec4};
 use std::path::{Path, PathBuf};
@@ -8,7 +9,9 @@ use std::sync::Arc;
 
 use crate::asset::desc::{AlphaMode, MeshDesc};
 use crate::asset::desc::{LampKind, PortalDesc, SceneDesc};
-use crate::asset::environment::{EnvironmentDesc, EnvironmentError, check_numbers};
+use crate::asset::environment::{
+    EnvironmentDesc, EnvironmentError, EnvironmentOverrides, check_numbers,
+};
 use crate::asset::{builtin, gltf};
 use crate::camera::Camera;
 use crate::light::LightSet;
@@ -424,6 +427,25 @@ impl Scene {
             }
             None => Err(SceneError::UnknownBuiltin(name_or_path.to_owned())),
         }
+    }
+
+    /// [`Scene::open`], then the command line's replacements for its environment (CLI over
+    /// the scene's extras); the same for every subcommand and the viewer.
+    pub fn open_with_environment(
+        name_or_path: &str,
+        overrides: &EnvironmentOverrides,
+    ) -> Result<Scene, SceneError> {
+        let scene = Scene::open(name_or_path)?;
+        if overrides.is_empty() {
+            return Ok(scene);
+        }
+        let environment = overrides
+            .apply(scene.desc.environment.as_ref())
+            .map_err(|error| SceneError::Environment {
+                file: scene.file_label(),
+                error,
+            })?;
+        scene.with_environment(environment)
     }
 
     /// The same geometry with other portals (an edit); the BVH is shared, not rebuilt.

@@ -129,11 +129,12 @@ impl<'f> GeometryWriter<'f> {
         values: &[Vec3],
         min_max: bool,
     ) -> Result<json::Index<json::Accessor>, GltfError> {
-        let bytes: Vec<u8> = values
-            .iter()
-            .flat_map(|v| v.to_array())
-            .flat_map(f32::to_le_bytes)
-            .collect();
+        let bytes = le_bytes(
+            values
+                .iter()
+                .flat_map(|v| v.to_array())
+                .map(f32::to_le_bytes),
+        );
         let view = self.view(&bytes, json::buffer::Target::ArrayBuffer)?;
         let bounds = min_max.then(|| {
             values
@@ -150,11 +151,7 @@ impl<'f> GeometryWriter<'f> {
         &mut self,
         values: &[[f32; N]],
     ) -> Result<json::Index<json::Accessor>, GltfError> {
-        let bytes: Vec<u8> = values
-            .iter()
-            .flatten()
-            .flat_map(|x| x.to_le_bytes())
-            .collect();
+        let bytes = le_bytes(values.iter().flatten().map(|x| x.to_le_bytes()));
         let view = self.view(&bytes, json::buffer::Target::ArrayBuffer)?;
         let ty = if N == 2 { Type::Vec2 } else { Type::Vec4 };
         self.accessor(view, values.len(), ComponentType::F32, ty, None)
@@ -164,11 +161,7 @@ impl<'f> GeometryWriter<'f> {
         &mut self,
         triangles: &[[u32; 3]],
     ) -> Result<json::Index<json::Accessor>, GltfError> {
-        let bytes: Vec<u8> = triangles
-            .iter()
-            .flatten()
-            .flat_map(|i| i.to_le_bytes())
-            .collect();
+        let bytes = le_bytes(triangles.iter().flatten().map(|i| i.to_le_bytes()));
         let view = self.view(&bytes, json::buffer::Target::ElementArrayBuffer)?;
         self.accessor(
             view,
@@ -662,4 +655,9 @@ pub(super) fn write_atomically(file: &Path, bytes: &[u8]) -> Result<(), GltfErro
         file: file.to_owned(),
         source,
     })
+}
+
+/// 4-byte scalars laid end to end, as a glTF buffer stores them (little-endian).
+fn le_bytes(words: impl IntoIterator<Item = [u8; 4]>) -> Vec<u8> {
+    words.into_iter().flatten().collect()
 }
