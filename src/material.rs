@@ -197,7 +197,7 @@ impl Material {
     }
 
     /// `f(wo, wi)` and the pdf of `sample` drawing `wi`, sharing the microfacet terms.
-    #[inline]
+    #[inline(always)]
     pub fn eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
         if wo.z <= 0.0 || wi.z <= 0.0 {
             return (Vec3::ZERO, 0.0);
@@ -232,6 +232,7 @@ impl Material {
     }
 
     /// The direction part of [`Self::sample`], for callers that may not need its value.
+    #[inline(always)]
     pub fn sample_direction(&self, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<Vec3> {
         if wo.z <= 0.0 {
             return None;
@@ -246,6 +247,7 @@ impl Material {
     }
 
     /// The sample that [`Self::sample_direction`] drew as `wi`: its value and pdf.
+    #[inline(always)]
     pub fn sampled(&self, wo: Vec3, wi: Vec3) -> Option<BsdfSample> {
         let (f, pdf) = self.eval_pdf(wo, wi);
         (pdf > 0.0).then_some(BsdfSample { wi, f, pdf })

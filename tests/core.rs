@@ -11,7 +11,7 @@ use portalview::material::Material;
 use portalview::render::integrator::{Integrator, RenderSettings};
 use portalview::render::record::Recorder;
 use portalview::render::stats::Stats;
-use portalview::render::{Tiles, render, render_pass, render_tile};
+use portalview::render::{Isa, Tiles, render, render_pass, render_tile, render_tile_isa};
 use portalview::sampling::{Rng, SamplerKind};
 use portalview::scene::Scene;
 use portalview::scene::bvh::{Bvh, BvhError};
@@ -264,6 +264,75 @@ fn statistics_count_every_traced_ray() {
                 for (i, p) in pixels[tile as usize].iter().enumerate() {
                     let (x, y) = (x0 + i as u32 % w, y0 + i as u32 / w);
                     assert_eq!(*p, image[(y * 40 + x) as usize], "{label}: pixel {x},{y}");
+                }
+            }
+        }
+    }
+}
+
+/// The renderer is compiled for baseline x86-64 and for x86-64-v3 (AVX2, FMA), the variant
+/// chosen at run time: every variant this CPU runs must give the baseline's
+/// pixels, bit for bit, on every built-in scene (textured too), with every strategy, for direct
+/// light and longer paths. The test names the variants it compared (a CPU without AVX2 compares
+/// the baseline with itself).
+#[test]
+fn instruction_set_variants_render_identical_pixels() {
+    let variants: Vec<Isa> = Isa::ALL.into_iter().filter(|isa| isa.available()).collect();
+    eprintln!("instruction-set variants compared: {variants:?}");
+    let descs = portalview::asset::builtin::NAMES.iter().flat_map(|&name| {
+        let desc = portalview::asset::builtin::desc(name).unwrap();
+        let textured = portalview::asset::builtin::with_test_textures(desc.clone());
+        [
+            (name.to_string(), desc),
+            (format!("{name}, textured"), textured),
+        ]
+    });
+    for (name, desc) in descs {
+        let scene = Scene::from_desc(desc, &name).unwrap();
+        for strategy in Strategy::ALL {
+            for max_depth in [1, 3] {
+                let integrator = Integrator::new(
+                    &scene,
+                    RenderSettings {
+                        strategy,
+                        max_depth,
+                        seed: 11,
+                        ..RenderSettings::default()
+                    },
+                );
+                let tiles = Tiles::new(24, 16);
+                let rays = scene.camera.rays(24.0 / 16.0);
+                let bvh = &scene.geometry.bvh;
+                for tile in 0..tiles.count() {
+                    let render = |isa| {
+                        let mut stats = Stats::default();
+                        let pixels = render_tile_isa(
+                            isa,
+                            &integrator,
+                            bvh,
+                            &rays,
+                            tiles,
+                            tile,
+                            0,
+                            &mut stats,
+                        );
+                        (
+                            pixels
+                                .iter()
+                                .map(|p| p.to_array().map(f32::to_bits))
+                                .collect::<Vec<_>>(),
+                            stats,
+                        )
+                    };
+                    let (baseline, baseline_stats) = render(Isa::Baseline);
+                    for &isa in &variants {
+                        let (pixels, stats) = render(isa);
+                        let label = format!(
+                            "{name}, {strategy:?}, depth {max_depth}, tile {tile}, {isa:?}"
+                        );
+                        assert_eq!(baseline, pixels, "{label}");
+                        assert_eq!(baseline_stats.rays(), stats.rays(), "{label}");
+                    }
                 }
             }
         }

@@ -13,7 +13,7 @@ use crate::light::Technique;
 use crate::light::antishadow::Region;
 use crate::render::integrator::{Integrator, RenderSettings};
 use crate::render::stats::Stats;
-use crate::render::{film::Film, render_pass, tonemap};
+use crate::render::{Isa, film::Film, render_pass, tonemap};
 
 #[derive(Args, Debug, Clone)]
 pub struct RenderArgs {
@@ -139,6 +139,10 @@ fn print_summary(film: &Film, stats: &Stats, elapsed: Duration) {
         samples / secs / 1e6,
         stats.rays() as f64 / secs / 1e6,
         stats.shadow_rays
+    );
+    println!(
+        "renderer compiled for: {} (PORTALVIEW_ISA=baseline forces the baseline)",
+        Isa::detect().name()
     );
     let regions: Vec<String> = Region::ALL
         .iter()

@@ -151,6 +151,7 @@ impl AreaLight {
 
     /// A uniform point on the light's area (pdf `1 / area`). `u.x` picks the triangle and is
     /// reused inside it.
+    #[inline(always)]
     pub fn sample_point(&self, u: Vec2) -> Option<LightPoint> {
         let (i, _, ux) = self.by_area.sample(u.x)?;
         let ([a, b, c], n) = self.triangles[i];
@@ -162,6 +163,7 @@ impl AreaLight {
     }
 
     /// Radiance leaving a point with front normal `n` towards `w` (unit, from the light).
+    #[inline(always)]
     pub fn emitted(&self, n: Vec3, w: Vec3) -> Vec3 {
         if self.double_sided || n.dot(w) > 0.0 {
             self.radiance
@@ -172,6 +174,7 @@ impl AreaLight {
 
     /// Solid-angle pdf of uniform area sampling for a point at distance `dist` whose normal
     /// makes cosine `cos_light` with the direction.
+    #[inline(always)]
     pub fn pdf_solid_angle(&self, dist: f32, cos_light: f32) -> f32 {
         let c = cos_light.abs();
         if c <= 0.0 || self.area <= 0.0 {

@@ -155,6 +155,7 @@ impl LightSampler {
     }
 
     /// Picks an area light or a lamp by power: which, and its probability.
+    #[inline(always)]
     pub fn pick(&self, u: f32) -> Option<(PickedLight, f32)> {
         let (i, p, _) = self.by_power.sample(u)?;
         let picked = match i.checked_sub(self.area_lights) {
@@ -286,6 +287,7 @@ impl LightSampler {
     /// Draws a direction from the mixture: the technique by `u_technique`, the direction by `u`.
     /// `None` when the drawn share has no technique (a point outside every antishadow draws
     /// nothing with probability `1 − alpha`) or the draw degenerates; both contribute zero.
+    #[inline(always)]
     pub fn sample(
         &self,
         scene: &impl LightSet,

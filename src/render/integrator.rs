@@ -133,7 +133,9 @@ impl<'a> Integrator<'a> {
     }
 
     /// [`Self::radiance`] with every ray traced through `tracer`: the scene's BVH, or the
-    /// benchmark's recorder of it.
+    /// benchmark's recorder of it. Always inlined, with the steps it calls: the tile renderer
+    /// compiles it once per instruction set (`render::render_tile_isa`).
+    #[inline(always)]
     pub fn radiance_traced<T: Tracer>(
         &self,
         tracer: &T,
@@ -278,6 +280,7 @@ impl<'a> Integrator<'a> {
     /// light, MIS-weighted against the light technique of the previous vertex (if any). Only
     /// for scenes whose lights are all polygons: the nearest light polygon along the ray is
     /// found directly, and one occlusion ray checks that nothing lies before it.
+    #[inline(always)]
     fn emission_along<T: Tracer>(
         &self,
         tracer: &T,
@@ -345,6 +348,7 @@ impl<'a> Integrator<'a> {
     }
 
     /// The light whose polygon the ray `o + t·d` meets first, and the distance `t`.
+    #[inline(always)]
     fn nearest_light_polygon(&self, o: Vec3, d: Vec3) -> Option<(usize, f32)> {
         self.scene
             .geometry
@@ -361,6 +365,7 @@ impl<'a> Integrator<'a> {
     /// normal that `wo` is on and keeps `wo` above its horizon, else the interpolated normal
     /// is (a normal map must not turn a visible point black). Light from below the geometric
     /// surface is refused separately (`wi · ng > 0`), so a tilted normal never leaks light.
+    #[inline(always)]
     fn shading<'m>(
         p: Vec3,
         ns: Vec3,
@@ -391,6 +396,7 @@ impl<'a> Integrator<'a> {
     /// Picks a light, draws one sample from the strategy's mixture and traces its shadow ray:
     /// the MIS-weighted contribution, or `None` when no light was picked. Leaves an area
     /// light's context in `ctx` for later MIS (a lamp's sample leaves it untouched).
+    #[inline(always)]
     fn sample_direct<T: Tracer>(
         &self,
         tracer: &T,
@@ -452,6 +458,7 @@ impl<'a> Integrator<'a> {
     /// A lamp's contribution, `f · E · cos θ / P(lamp)` with `E` its irradiance at normal
     /// incidence. A lamp is a delta light: BSDF sampling never finds it, so its sample's MIS
     /// weight is 1.
+    #[inline(always)]
     fn lamp_direct<T: Tracer>(
         &self,
         tracer: &T,
@@ -527,6 +534,7 @@ impl<'a> Integrator<'a> {
     }
 
     /// A light sample's contribution, weighted against BSDF sampling by the power heuristic.
+    #[inline(always)]
     fn direct<T: Tracer>(
         &self,
         tracer: &T,
@@ -553,6 +561,7 @@ impl<'a> Integrator<'a> {
     /// Radiance `le` arriving along `wi`, drawn with density `light_pdf` (selection times
     /// mixture), weighted against BSDF sampling by the power heuristic; zero if something
     /// stands before `tmax`, or the direction is below the surface or has no density.
+    #[inline(always)]
     fn weighted<T: Tracer>(
         tracer: &T,
         s: &Shading,

@@ -91,6 +91,7 @@ impl SamplerKind {
 
     /// The sampler of pass `pass` of pixel `(x, y)` in an image `width` pixels wide: it
     /// depends on nothing else, so an image does not depend on how threads split the work.
+    #[inline(always)]
     pub fn start(self, seed: u64, x: u32, y: u32, width: u32, pass: u32) -> Sampler {
         match self {
             SamplerKind::Independent => {
@@ -113,7 +114,7 @@ pub enum Sampler {
 
 impl Sampler {
     /// Uniform in [0, 1).
-    #[inline]
+    #[inline(always)]
     pub fn uniform(&mut self) -> f32 {
         match self {
             Sampler::Independent(rng) => rng.uniform(),
@@ -122,7 +123,7 @@ impl Sampler {
     }
 
     /// Uniform on [0, 1)², stratified jointly by the Sobol' sampler.
-    #[inline]
+    #[inline(always)]
     pub fn uniform2(&mut self) -> Vec2 {
         match self {
             Sampler::Independent(rng) => rng.uniform2(),
@@ -169,7 +170,7 @@ pub fn cyclic_pairs<T: Copy>(v: &[T]) -> impl Iterator<Item = (T, T)> + Clone + 
 /// `(sin a, cos a)` for `|a| ≤ π/4`, by Taylor polynomials whose truncation error there is
 /// below 2e-9, under f32 rounding: several times cheaper than libm's general `sin_cos`, and
 /// the warps only need this range.
-#[inline]
+#[inline(always)]
 pub fn sin_cos_quarter(a: f32) -> (f32, f32) {
     let a2 = a * a;
     let sin =
@@ -202,6 +203,7 @@ pub struct Frame {
 }
 
 impl Frame {
+    #[inline(always)]
     pub fn from_normal(n: Vec3) -> Self {
         let sign = 1.0_f32.copysign(n.z);
         let a = -1.0 / (sign + n.z);
@@ -212,15 +214,18 @@ impl Frame {
             n,
         }
     }
+    #[inline(always)]
     pub fn to_world(&self, v: Vec3) -> Vec3 {
         self.t * v.x + self.b * v.y + self.n * v.z
     }
+    #[inline(always)]
     pub fn to_local(&self, v: Vec3) -> Vec3 {
         Vec3::new(v.dot(self.t), v.dot(self.b), v.dot(self.n))
     }
 }
 
 /// Cosine-weighted hemisphere around +z (Malley's method on a concentric disk).
+#[inline(always)]
 pub fn sample_cosine_hemisphere(u: Vec2) -> Vec3 {
     let d = sample_concentric_disk(u);
     let z = (1.0 - d.length_squared()).max(0.0).sqrt();
@@ -232,6 +237,7 @@ pub fn cosine_hemisphere_pdf(cos_theta: f32) -> f32 {
 }
 
 /// Shirley–Chiu concentric map from the unit square to the unit disk.
+#[inline(always)]
 pub fn sample_concentric_disk(u: Vec2) -> Vec2 {
     let o = 2.0 * u - Vec2::ONE;
     if o == Vec2::ZERO {
@@ -249,6 +255,7 @@ pub fn sample_concentric_disk(u: Vec2) -> Vec2 {
 }
 
 /// Uniform barycentric coordinates (b0, b1) on a triangle (the square-root map).
+#[inline(always)]
 pub fn sample_uniform_triangle(u: Vec2) -> Vec2 {
     let su = u.x.sqrt();
     Vec2::new(1.0 - su, u.y * su)
@@ -292,6 +299,7 @@ impl Distribution1D {
 
     /// Picks an index with probability proportional to its weight; returns it, its
     /// probability, and `u` rescaled to [0, 1) within the chosen bin (for reuse).
+    #[inline(always)]
     pub fn sample(&self, u: f32) -> Option<(usize, f32, f32)> {
         if self.is_empty() {
             return None;

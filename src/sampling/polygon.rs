@@ -49,6 +49,7 @@ impl Plane {
     }
 
     /// The ray parameter where `o + t·dir` crosses the plane, if it does so at `t > 0`.
+    #[inline(always)]
     pub fn intersect(&self, o: Vec3, dir: Vec3) -> Option<f32> {
         let denom = self.n.dot(dir);
         if denom == 0.0 {
@@ -292,12 +293,14 @@ impl ConvexPolygon {
     }
 
     /// Where the ray `o + t·dir` (any side) hits the polygon, if at `t > 0`.
+    #[inline(always)]
     pub fn intersect(&self, o: Vec3, dir: Vec3) -> Option<f32> {
         let t = self.plane().intersect(o, dir)?;
         self.contains_coplanar(o + t * dir).then_some(t)
     }
 
     /// Whether `p`, assumed on the polygon's plane, is inside it (boundary included).
+    #[inline(always)]
     pub fn contains_coplanar(&self, p: Vec3) -> bool {
         self.edges()
             .all(|(a, b)| (b - a).cross(p - a).dot(self.normal) >= 0.0)

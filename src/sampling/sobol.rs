@@ -44,6 +44,7 @@ pub struct ZSobol {
 
 impl ZSobol {
     /// The sampler for pass `pass` of pixel `(x, y)` under `seed`.
+    #[inline(always)]
     pub fn new(seed: u64, x: u32, y: u32, pass: u32) -> Self {
         let epoch = (pass >> LOG2_PASSES) as u64;
         let index = (morton2(x, y) << LOG2_PASSES) | (pass & (PASSES_PER_EPOCH - 1)) as u64;
@@ -56,7 +57,7 @@ impl ZSobol {
     }
 
     /// The scrambled index and the output scrambles' seeds of the next draw.
-    #[inline]
+    #[inline(always)]
     fn next_draw(&mut self) -> (u64, u64) {
         let h = mix_bits(self.key ^ self.dimension.wrapping_mul(0x9E37_79B9_7F4A_7C15));
         self.dimension += 1;
@@ -65,7 +66,7 @@ impl ZSobol {
     }
 
     /// Uniform in [0, 1): the first Sobol' dimension (van der Corput) of this draw's index.
-    #[inline]
+    #[inline(always)]
     pub fn uniform(&mut self) -> f32 {
         let (index, seeds) = self.next_draw();
         unit(owen_scramble_rev(sobol0_rev(index), seeds as u32))
@@ -73,7 +74,7 @@ impl ZSobol {
 
     /// Uniform on [0, 1)²: the first two Sobol' dimensions of this draw's index, which form a
     /// (0, 2)-sequence, each Owen-scrambled with its own seed.
-    #[inline]
+    #[inline(always)]
     pub fn uniform2(&mut self) -> glam::Vec2 {
         let (index, seeds) = self.next_draw();
         glam::Vec2::new(

@@ -1,7 +1,7 @@
 //! The acceleration structure: an obvhs CWBVH over every triangle, with triangles reordered
 //! once into BVH order so traversal reads them sequentially.
 
-use glam::{Vec2, Vec3, Vec3A};
+use glam::{UVec2, Vec2, Vec3, Vec3A};
 use obvhs::{
     BvhBuildParams,
     bvh2::{Bvh2, reinsertion::ReinsertionOptimizer},
@@ -79,6 +79,60 @@ fn make_ray(origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> Ray {
     Ray::new(origin.into(), (dir + Vec3::ZERO).into(), tmin, tmax)
 }
 
+/// The closest primitive along `ray` and its distance: obvhs's `CwBvh::ray_traverse`, through
+/// its `traverse!` macro here so that the traversal is compiled into (and inlined by) the
+/// renderer's CPU-feature variants (`render::render_tile`) instead of once for baseline x86-64.
+#[inline(always)]
+fn closest(
+    bvh: &CwBvh,
+    ray: Ray,
+    mut intersect: impl FnMut(&Ray, usize) -> f32,
+) -> Option<(u32, f32)> {
+    let mut traverse_ray = ray;
+    let mut hit = RayHit::none();
+    let mut state = bvh.new_traversal(ray.direction);
+    let mut node;
+    obvhs::traverse!(
+        bvh,
+        node,
+        state,
+        node.intersect_ray(&traverse_ray, state.oct_inv4),
+        {
+            let t = intersect(&traverse_ray, state.primitive_id as usize);
+            if t < traverse_ray.tmax {
+                hit.primitive_id = state.primitive_id;
+                hit.t = t;
+                traverse_ray.tmax = t;
+            }
+        }
+    );
+    (hit.t < ray.tmax).then_some((hit.primitive_id, hit.t))
+}
+
+/// Whether any primitive lies along `ray`: obvhs's `CwBvh::ray_traverse_miss`, negated, for the
+/// same reason as [`closest`].
+#[inline(always)]
+fn any_hit(bvh: &CwBvh, ray: Ray, mut intersect: impl FnMut(&Ray, usize) -> f32) -> bool {
+    let mut state = bvh.new_traversal(ray.direction);
+    let mut node;
+    let mut hit = false;
+    'outer: {
+        obvhs::traverse!(
+            bvh,
+            node,
+            state,
+            node.intersect_ray(&ray, state.oct_inv4),
+            {
+                if intersect(&ray, state.primitive_id as usize) < ray.tmax {
+                    hit = true;
+                    break 'outer;
+                }
+            }
+        );
+    }
+    hit
+}
+
 /// The two ray queries a renderer makes. The renderer traces through [`Bvh`]; the benchmark
 /// traces through a recorder, to replay exactly the renderer's rays through raw traversal.
 pub trait Tracer {
@@ -89,12 +143,12 @@ pub trait Tracer {
 }
 
 impl Tracer for Bvh {
-    #[inline]
+    #[inline(always)]
     fn closest_hit(&self, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> Option<Hit> {
         Bvh::closest_hit(self, origin, dir, tmin, tmax)
     }
 
-    #[inline]
+    #[inline(always)]
     fn occluded(&self, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> bool {
         Bvh::occluded(self, origin, dir, tmin, tmax)
     }
@@ -354,36 +408,32 @@ impl Bvh {
     }
 
     /// The closest hit of `origin + t·dir` with `t` in `(tmin, tmax)`.
-    #[inline]
+    #[inline(always)]
     pub fn closest_hit(&self, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> Option<Hit> {
         let bvh = self.cwbvh.as_ref()?;
         let ray = make_ray(origin, dir, tmin, tmax);
-        let mut hit = RayHit::none();
-        let found = match &self.cutouts {
-            None => bvh.ray_traverse(ray, &mut hit, |r, id| self.triangles[id].intersect(r)),
-            Some(c) => bvh.ray_traverse(ray, &mut hit, |r, id| self.intersect_cutout(c, r, id)),
-        };
-        if !found {
-            return None;
-        }
-        let (u, v, _) = self.triangles[hit.primitive_id as usize].uvt(&ray);
+        let (id, t) = match &self.cutouts {
+            None => closest(bvh, ray, |r, id| self.triangles[id].intersect(r)),
+            Some(c) => closest(bvh, ray, |r, id| self.intersect_cutout(c, r, id)),
+        }?;
+        let (u, v, _) = self.triangles[id as usize].uvt(&ray);
         Some(Hit {
-            t: hit.t,
-            triangle: self.scene_index[hit.primitive_id as usize],
+            t,
+            triangle: self.scene_index[id as usize],
             bary: Vec2::new(u, v),
         })
     }
 
     /// Whether anything lies on the open segment `origin + t·dir`, `t` in `(tmin, tmax)`.
-    #[inline]
+    #[inline(always)]
     pub fn occluded(&self, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> bool {
         let Some(bvh) = self.cwbvh.as_ref() else {
             return false;
         };
         let ray = make_ray(origin, dir, tmin, tmax);
         match &self.cutouts {
-            None => !bvh.ray_traverse_miss(ray, |r, id| self.triangles[id].intersect(r)),
-            Some(c) => !bvh.ray_traverse_miss(ray, |r, id| self.intersect_cutout(c, r, id)),
+            None => any_hit(bvh, ray, |r, id| self.triangles[id].intersect(r)),
+            Some(c) => any_hit(bvh, ray, |r, id| self.intersect_cutout(c, r, id)),
         }
     }
 
