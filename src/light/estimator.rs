@@ -17,7 +17,7 @@ use super::area::{AreaLight, LightPoint};
 use super::portal::Portal;
 use super::punctual::Lamp;
 use super::{LightSet, Strategy, Technique};
-use crate::sampling::polygon::{Plane, Verts, clip_convex, convex_hull_in_plane, merge_close};
+use crate::sampling::polygon::{Plane, Verts, clip_convex_into, convex_hull_in_plane, merge_close};
 use crate::sampling::spherical::SphericalPolygon;
 use crate::sampling::{Distribution1D, cyclic_pairs, pick_by_weight};
 
@@ -241,6 +241,7 @@ impl LightSampler {
         for (j, region, technique) in candidates {
             // The term goes in first and its projection is built into it: a spherical polygon
             // is over a kilobyte, and each move of it is a copy.
+            let needs_projection = several || technique == Technique::Projection;
             if ctx
                 .terms
                 .try_push(PortalTerm {
@@ -248,7 +249,7 @@ impl LightSampler {
                     region,
                     technique,
                     weight: 1.0,
-                    projection: None,
+                    projection: needs_projection.then(SphericalPolygon::empty),
                 })
                 .is_err()
             {
@@ -257,8 +258,10 @@ impl LightSampler {
             let Some(term) = ctx.terms.last_mut() else {
                 break;
             };
-            if several || technique == Technique::Projection {
-                term.projection = projection(&scene.portals()[j], x);
+            if let Some(q) = &mut term.projection
+                && !projection_into(&scene.portals()[j], x, q)
+            {
+                term.projection = None;
             }
             if several {
                 term.weight = term.projection.as_ref().map_or(0.0, |q| q.solid_angle());
@@ -479,37 +482,44 @@ pub fn portal_pdf(portal: &Portal, x: Vec3, wi: Vec3) -> f32 {
 /// `Q(x)`: the light (clipped behind the portal plane; for a light of any shape, its solid)
 /// projected from `x` onto the portal plane and clipped to the portal, as seen from `x`.
 pub fn projection(portal: &Portal, x: Vec3) -> Option<SphericalPolygon> {
-    let q = projected_light(portal, x);
-    if q.len() < 3 {
-        return None;
-    }
-    SphericalPolygon::new(x, &q)
+    let mut q = SphericalPolygon::empty();
+    projection_into(portal, x, &mut q).then_some(q)
+}
+
+/// [`projection`] built in `q` (over a kilobyte, so built where the context keeps it); false,
+/// leaving `q` empty, where `projection` gives `None`.
+pub fn projection_into(portal: &Portal, x: Vec3, q: &mut SphericalPolygon) -> bool {
+    let mut vertices = Verts::new();
+    projected_light_into(portal, x, &mut vertices);
+    vertices.len() >= 3 && q.set(x, &vertices)
 }
 
 /// The vertices of `Q(x)` on the portal plane.
 pub fn projected_light(portal: &Portal, x: Vec3) -> Verts {
+    let mut q = Verts::new();
+    projected_light_into(portal, x, &mut q);
+    q
+}
+
+/// [`projected_light`] into `q`.
+pub fn projected_light_into(portal: &Portal, x: Vec3, q: &mut Verts) {
+    q.clear();
     let plane: Plane = portal.polygon.plane();
     let dx = plane.signed_distance(x);
     if dx <= 0.0 {
-        return Verts::new();
+        return;
     }
-    let projected: Verts = portal
-        .planes
-        .light_behind_portal()
-        .iter()
-        .map(|&v| {
-            // x is in front and v on or behind the plane, so the segment crosses it once.
-            let dv = plane.signed_distance(v);
-            x + (v - x) * (dx / (dx - dv))
-        })
-        .collect();
+    let mut projected = Verts::new();
+    projected.extend(portal.planes.light_behind_portal().iter().map(|&v| {
+        // x is in front and v on or behind the plane, so the segment crosses it once.
+        let dv = plane.signed_distance(v);
+        x + (v - x) * (dx / (dx - dv))
+    }));
     // A solid's vertices project to a point set: its outline is their convex hull.
-    let projected = if portal.planes.is_hull() {
-        convex_hull_in_plane(&projected, plane.n)
-    } else {
-        projected
-    };
-    let mut q = clip_convex(&projected, &portal.polygon);
+    if portal.planes.is_hull() {
+        projected = convex_hull_in_plane(&projected, plane.n);
+    }
+    clip_convex_into(&projected, &portal.polygon, q);
     // From x on (or within rounding of) an antishadow plane, a projected light vertex lies on a
     // portal edge's line, or a portal vertex on a projected light edge: the clip keeps two
     // copies of one point, and the plane through x and the edge between them, which the
@@ -518,8 +528,7 @@ pub fn projected_light(portal: &Portal, x: Vec3) -> Verts {
     // (the light clip's tolerance) carry no shape worth keeping either.
     let max_coordinate = q.iter().map(|v| v.abs().max_element()).fold(0.0, f32::max);
     let tol = MERGE_TOLERANCE * portal.planes.scale() + 64.0 * f32::EPSILON * max_coordinate;
-    merge_close(&mut q, tol);
-    q
+    merge_close(q, tol);
 }
 
 /// Relative to the scene's scale: vertices of `Q(x)` this close merge (see [`projected_light`]).

@@ -396,9 +396,15 @@ pub fn clip_by_plane(vertices: &[Vec3], plane: Plane) -> Verts {
 
 /// [`clip_by_plane`] into a reused buffer.
 fn clip_by_plane_into(vertices: &[Vec3], plane: Plane, out: &mut Verts) {
+    let mut distances: ArrayVec<f32, MAX_CLIP_VERTICES> = ArrayVec::new();
+    distances.extend(vertices.iter().map(|&p| plane.signed_distance(p)));
+    clip_by_distances_into(vertices, &distances, out);
+}
+
+/// Sutherland–Hodgman given each vertex's signed distance to the plane (each computed once).
+fn clip_by_distances_into(vertices: &[Vec3], distances: &[f32], out: &mut Verts) {
     out.clear();
-    for (a, b) in super::cyclic_pairs(vertices) {
-        let (da, db) = (plane.signed_distance(a), plane.signed_distance(b));
+    for ((a, b), (da, db)) in super::cyclic_pairs(vertices).zip(super::cyclic_pairs(distances)) {
         if da >= 0.0 {
             push(out, a);
         }
@@ -417,14 +423,23 @@ fn push(out: &mut Verts, p: Vec3) {
 
 /// Clips `subject` (coplanar with `clip`) to the inside of the convex polygon `clip`.
 pub fn clip_convex(subject: &[Vec3], clip: &ConvexPolygon) -> Verts {
-    // Two buffers in turn, so that no clip copies a whole vertex array.
-    let mut buffers = [Verts::new(), Verts::new()];
-    buffers[0].extend(subject.iter().copied());
-    let mut current = 0;
+    let mut out = Verts::new();
+    clip_convex_into(subject, clip, &mut out);
+    out
+}
+
+/// [`clip_convex`] into `out` (a clip per shading point: no vertex array is moved).
+pub fn clip_convex_into(subject: &[Vec3], clip: &ConvexPolygon, out: &mut Verts) {
+    out.clear();
+    out.extend(subject.iter().copied());
+    // `out` and `spare` take turns as source and destination.
+    let mut spare = Verts::new();
+    let mut in_spare = false;
     for (a, b) in clip.edges() {
-        if buffers[current].len() < 3 {
-            buffers[current].clear();
-            break;
+        let src = if in_spare { &spare } else { &*out };
+        if src.len() < 3 {
+            out.clear();
+            return;
         }
         // For counter-clockwise vertices, `normal × edge` points into the polygon.
         let inward = clip.normal().cross(b - a);
@@ -432,17 +447,23 @@ pub fn clip_convex(subject: &[Vec3], clip: &ConvexPolygon) -> Verts {
             n: inward,
             d: inward.dot(a),
         };
-        let [first, second] = &mut buffers;
-        let (src, dst) = if current == 0 {
-            (first, second)
+        let mut distances: ArrayVec<f32, MAX_CLIP_VERTICES> = ArrayVec::new();
+        distances.extend(src.iter().map(|&p| plane.signed_distance(p)));
+        // An edge that keeps every vertex leaves the polygon as it is: no copy.
+        if distances.iter().all(|&d| d >= 0.0) {
+            continue;
+        }
+        if in_spare {
+            clip_by_distances_into(&spare, &distances, out);
         } else {
-            (second, first)
-        };
-        clip_by_plane_into(src, plane, dst);
-        current = 1 - current;
+            clip_by_distances_into(out, &distances, &mut spare);
+        }
+        in_spare = !in_spare;
     }
-    let [first, second] = buffers;
-    if current == 0 { first } else { second }
+    if in_spare {
+        out.clear();
+        out.extend(spare.iter().copied());
+    }
 }
 
 /// Drops each vertex within `tol` of the previous one kept, and trailing ones within `tol` of
@@ -450,7 +471,7 @@ pub fn clip_convex(subject: &[Vec3], clip: &ConvexPolygon) -> Verts {
 /// edge between the copies has a direction made by rounding. What is kept is a subsequence of
 /// the vertices, so a convex polygon stays convex.
 pub fn merge_close(vertices: &mut Verts, tol: f32) {
-    let kept = merge_close_by(vertices, |a, b| a.distance(b) <= tol);
+    let kept = merge_close_by(vertices, |a, b| a.distance_squared(b) <= tol * tol);
     vertices.truncate(kept);
 }
 

@@ -2,7 +2,7 @@
 //! solid angle (Arvo 1995), and the spherical polygon that the projection strategy samples.
 
 use arrayvec::ArrayVec;
-use glam::{DVec3, Vec2, Vec3};
+use glam::{DVec2, DVec3, Vec2, Vec3};
 
 use super::polygon::{MAX_CLIP_VERTICES, Plane, Verts, sample_polygon_area};
 
@@ -33,8 +33,6 @@ const EDGE_TOLERANCE: f32 = 2.0 * f32::EPSILON;
 /// polygon edge-on: no usable solid angle.
 const PLANE_TOLERANCE: f64 = 1e-6;
 
-const ONE_MINUS_EPSILON: f32 = 1.0 - f32::EPSILON / 2.0;
-
 /// The solid angle of the spherical triangle with unit vertices `a`, `b`, `c` (Van Oosterom and
 /// Strackee 1983): `2·atan2(|a·(b×c)|, 1 + a·b + b·c + c·a)`, either winding.
 pub fn spherical_triangle_solid_angle(a: Vec3, b: Vec3, c: Vec3) -> f32 {
@@ -45,9 +43,23 @@ pub fn spherical_triangle_solid_angle(a: Vec3, b: Vec3, c: Vec3) -> f32 {
 /// product of a small triangle nor the denominator of a near-hemisphere one (where `1 + c·a` and
 /// `a·b` are tiny differences of O(1) products) loses the digits that f32 would.
 fn solid_angle_f64(a: DVec3, b: DVec3, c: DVec3) -> f64 {
-    let volume = a.dot((b - a).cross(c - a)).abs();
-    let denominator = 1.0 + a.dot(b) + b.dot(c) + c.dot(a);
-    2.0 * volume.atan2(denominator)
+    let z = half_solid_angle_phasor(a, b, c);
+    2.0 * z.y.atan2(z.x)
+}
+
+/// Van Oosterom–Strackee as a complex number `z = (1 + a·b + b·c + c·a) + i·|a·(b×c)|`, whose
+/// argument is half the solid angle: a fan's half-angles add, so its cumulative solid angles
+/// are products of these, and one `atan2` of the last product gives the polygon's.
+fn half_solid_angle_phasor(a: DVec3, b: DVec3, c: DVec3) -> DVec2 {
+    DVec2::new(
+        1.0 + a.dot(b) + b.dot(c) + c.dot(a),
+        a.dot((b - a).cross(c - a)).abs(),
+    )
+}
+
+/// The product of two complex numbers `(re, im)`: their arguments add.
+fn complex_mul(p: DVec2, q: DVec2) -> DVec2 {
+    DVec2::new(p.x * q.x - p.y * q.y, p.x * q.y + p.y * q.x)
 }
 
 /// A uniformly distributed direction in the spherical triangle with unit vertices `a`, `b`, `c`
@@ -55,37 +67,66 @@ fn solid_angle_f64(a: DVec3, b: DVec3, c: DVec3) -> f64 {
 ///
 /// Arvo's (1995) map, structured as pbrt-v4's `SampleSphericalTriangle`: `u.x` picks the point `c'`
 /// on the arc `a → c` that cuts off the sub-triangle `(a, b, c')` of area `u.x · Ω`, and `u.y`
-/// picks a point on the arc `b → c'` with `1 − cos θ` uniform. Arvo's and pbrt's closed forms go
-/// through the vertex angles and `cos β'`, which cancel catastrophically in f32 for small or thin
-/// triangles; here `c'` is solved from the Van Oosterom–Strackee formula instead (same map), with
-/// every quantity formed from vertex differences.
+/// picks a point on the arc `b → c'` with `1 − cos θ` uniform (see
+/// [`sample_spherical_triangle_part`]).
 pub fn sample_spherical_triangle(a: Vec3, b: Vec3, c: Vec3, u: Vec2) -> Option<Vec3> {
     let area = spherical_triangle_solid_angle(a, b, c);
     if area.is_nan() || area <= MIN_TRIANGLE_SOLID_ANGLE {
         return None;
     }
-    // The arc a → c: unit tangent `t` at `a`, and its length.
+    let (sin_half, cos_half) = (0.5 * u.x * area).sin_cos();
+    sample_spherical_triangle_part(a, b, c, sin_half, cos_half, u.y)
+}
+
+/// Arvo's map for the sub-triangle `(a, b, c')` of solid angle `A'` given by
+/// `(sin A'/2, cos A'/2)`, and `v` for the arc `b → c'`; uniform over the triangle when `A'` is
+/// uniform in `[0, Ω]` (pdf [`spherical_triangle_pdf`]). `None` for a degenerate triangle.
+///
+/// Arvo's and pbrt's closed forms go through the vertex angles and `cos β'`, which cancel
+/// catastrophically in f32 for small or thin triangles; here `c'` is solved from the Van
+/// Oosterom–Strackee formula instead (same map), with every quantity formed from vertex
+/// differences, and without trigonometry: the half-angle `s/2` of the arc `a → c'` is kept as
+/// the vector `(cos, sin)` it is the argument of.
+pub fn sample_spherical_triangle_part(
+    a: Vec3,
+    b: Vec3,
+    c: Vec3,
+    sin_half: f32,
+    cos_half: f32,
+    v: f32,
+) -> Option<Vec3> {
+    // The arc a → c: unit tangent `t` at `a`.
     let ac = c - a;
     let t = (ac - ac.dot(a) * a).try_normalize()?;
-    let arc_ac = angle_between(a, c);
     // With c'(s) = cos s·a + sin s·t, the area of (a, b, c') is
     //   2·atan2(sin s·k, (1 + a·b)(1 + cos s) + sin s·(b·t)),   k = |a·(b×t)|,
-    // and setting it to `area_sub` gives tan(s/2) in closed form (half-angle substitution).
+    // and setting it to A' gives tan(s/2) = sin(A'/2)·(1 + a·b) / (cos(A'/2)·k − sin(A'/2)·b·t)
+    // (half-angle substitution): s/2 ∈ [0, π] is the argument of (x, y) below.
     let ab = b - a;
     let k = ab.dot(t.cross(a)).abs();
     let b_t = ab.dot(t);
     // 1 + a·b = |a + b|²/2, accurate also when b is nearly opposite a.
     let one_plus_cos_ab = 0.5 * (a + b).length_squared();
-    let area_sub = u.x * area;
-    let (sin_half, cos_half) = (0.5 * area_sub).sin_cos();
-    let half_s = (sin_half * one_plus_cos_ab).atan2(cos_half * k - sin_half * b_t);
-    let s = (2.0 * half_s).min(arc_ac);
-    // c' − a = (cos s − 1)·a + sin s·t, without cancelling cos s − 1.
-    let sin_quarter = (0.5 * s).sin();
-    let cp_minus_a = -2.0 * sin_quarter * sin_quarter * a + s.sin() * t;
+    let y = sin_half * one_plus_cos_ab;
+    let x = cos_half * k - sin_half * b_t;
+    let r = (x * x + y * y).sqrt();
+    // c' − a = (cos s − 1)·a + sin s·t = −2 sin²(s/2)·a + 2 sin(s/2) cos(s/2)·t, without
+    // cancelling cos s − 1. Past the arc's half-length (sin, cos) = (|c − a|, |c + a|)/2,
+    // c' is c itself (rounding only).
+    let cp_minus_a = if r > 0.0 {
+        let (sin_s, cos_s) = (y / r, x / r);
+        let (sin_arc, cos_arc) = (0.5 * ac.length(), 0.5 * (a + c).length());
+        if sin_s * cos_arc - cos_s * sin_arc > 0.0 {
+            ac
+        } else {
+            2.0 * sin_s * (cos_s * t - sin_s * a)
+        }
+    } else {
+        Vec3::ZERO
+    };
     // The arc b → c': cos θ uniform in [b·c', 1], with 1 − b·c' = |c' − b|²/2.
     let bcp = cp_minus_a - ab;
-    let one_minus_cos = u.y * 0.5 * bcp.length_squared();
+    let one_minus_cos = v * 0.5 * bcp.length_squared();
     let sin_theta = (one_minus_cos * (2.0 - one_minus_cos)).max(0.0).sqrt();
     let Some(e) = (bcp - bcp.dot(b) * b).try_normalize() else {
         return Some(b);
@@ -126,54 +167,55 @@ pub fn invert_spherical_triangle_sample(a: Vec3, b: Vec3, c: Vec3, w: Vec3) -> O
 }
 
 /// The point of the convex polygon `vertices` (relative to x, wound so that `v_i × v_{i+1}`
-/// points inside) nearest x, given the foot of x on its plane.
-fn nearest_point(vertices: &[DVec3], foot: DVec3) -> DVec3 {
-    let edges = super::cyclic_pairs(vertices);
-    if edges.clone().all(|(a, b)| foot.dot(a.cross(b - a)) >= 0.0) {
-        return foot;
+/// points inside) nearest x, given the foot of x on its plane and those edge-plane normals
+/// `m_i = v_i × v_{i+1}`.
+fn nearest_point(vertices: &[DVec3], edge_normals: &[DVec3], foot: DVec3) -> DVec3 {
+    // Outside, the nearest point is on an edge that has the foot on its outer side (at a
+    // vertex, on one of its two edges): only those are searched.
+    let mut nearest = foot;
+    let mut nearest_distance = f64::INFINITY;
+    for ((a, b), m) in super::cyclic_pairs(vertices).zip(edge_normals) {
+        if foot.dot(*m) >= 0.0 {
+            continue;
+        }
+        let e = b - a;
+        let p = a + (-a.dot(e) / e.length_squared()).clamp(0.0, 1.0) * e;
+        let distance = p.length_squared();
+        if distance < nearest_distance {
+            nearest = p;
+            nearest_distance = distance;
+        }
     }
-    // Outside: the nearest point is on an edge.
-    edges
-        .map(|(a, b)| {
-            let e = b - a;
-            a + (-a.dot(e) / e.length_squared()).clamp(0.0, 1.0) * e
-        })
-        .filter(|p| p.is_finite())
-        .min_by(|p, q| p.length_squared().total_cmp(&q.length_squared()))
-        .unwrap_or(foot)
-}
-
-/// The angle between unit vectors, accurate near 0 and π (unlike `acos` of the dot product).
-fn angle_between(a: Vec3, b: Vec3) -> f32 {
-    if a.dot(b) < 0.0 {
-        std::f32::consts::PI - 2.0 * (0.5 * (a + b).length()).min(1.0).asin()
-    } else {
-        2.0 * (0.5 * (b - a).length()).min(1.0).asin()
-    }
+    nearest
 }
 
 /// A planar convex polygon seen from a point `x`: the directions through it, sampled uniformly by
 /// solid angle (or by area when it subtends less than [`SMALL_SOLID_ANGLE`]).
 ///
 /// Sampling picks a triangle of a fan by solid angle, then samples it with
-/// [`sample_spherical_triangle`]. The fan's apex is the polygon's point nearest `x` rather than a
-/// vertex, so that no fan triangle joins nearly opposite directions when `x` is close to a large
-/// polygon.
+/// [`sample_spherical_triangle_part`]. The fan's apex is the polygon's point nearest `x` rather
+/// than a vertex, so that no fan triangle joins nearly opposite directions when `x` is close to a
+/// large polygon.
 ///
-/// Built once per shading point, so everything is stored inline.
+/// Built once per shading point, in place ([`Self::set`]): everything is stored inline.
 #[derive(Clone, Debug)]
 pub struct SphericalPolygon {
     origin: Vec3,
-    /// Vertices minus `origin`, wound clockwise as seen from `origin`.
-    offsets: Verts,
-    /// Unit directions from `origin` to the vertices.
-    directions: Verts,
+    /// Wound clockwise as seen from `origin`: the vertices minus `origin` when the polygon is
+    /// area-sampled, else the unit directions to them (each sampler reads only its own).
+    points: Verts,
     /// Unit direction to the polygon's point nearest `origin`: the apex of the fan.
     apex: Vec3,
     /// Unit normals of the planes through `origin` and each edge `(v_i, v_{i+1})`, pointing inside.
     edge_normals: Verts,
-    /// Cumulative solid angles of the fan triangles `(apex, v_i, v_{i+1})`, `i = 0..n`.
-    fan_cdf: ArrayVec<f32, MAX_CLIP_VERTICES>,
+    /// Per fan triangle `(apex, v_i, v_{i+1})`, `i = 0..n`: the cumulative half solid angle
+    /// `Φ_i = Σ_{k ≤ i} Ω_k / 2` as the complex number `ρ_i·(cos Φ_i, sin Φ_i)`, `ρ_i > 0`.
+    fan: ArrayVec<DVec2, MAX_CLIP_VERTICES>,
+    /// Bit `i` is set when fan triangle `i` exceeds [`MIN_TRIANGLE_SOLID_ANGLE`]: the others
+    /// are never picked.
+    fan_usable: u64,
+    /// `Φ_n = Ω/2`.
+    half_solid_angle: f64,
     solid_angle: f32,
     /// The polygon's plane, with `origin` on its positive side.
     plane: Plane,
@@ -187,12 +229,43 @@ impl SphericalPolygon {
     /// [`MAX_CLIP_VERTICES`]) seen from `x`. `None` if there are fewer than 3 vertices, `x` is
     /// on the polygon's plane, or the solid angle is zero.
     pub fn new(x: Vec3, vertices: &[Vec3]) -> Option<SphericalPolygon> {
+        let mut polygon = SphericalPolygon::empty();
+        polygon.set(x, vertices).then_some(polygon)
+    }
+
+    /// A polygon with no directions, to be filled by [`Self::set`].
+    pub fn empty() -> SphericalPolygon {
+        SphericalPolygon {
+            origin: Vec3::ZERO,
+            points: Verts::new(),
+            apex: Vec3::ZERO,
+            edge_normals: Verts::new(),
+            fan: ArrayVec::new(),
+            fan_usable: 0,
+            half_solid_angle: 0.0,
+            solid_angle: 0.0,
+            plane: Plane { n: Vec3::Z, d: 0.0 },
+            height: 0.0,
+            area: 0.0,
+        }
+    }
+
+    /// [`Self::new`] in place (a polygon is over a kilobyte: a shading point builds it where it
+    /// is kept rather than moving it there). Returns false, leaving the polygon empty, where
+    /// `new` returns `None`.
+    pub fn set(&mut self, x: Vec3, vertices: &[Vec3]) -> bool {
+        self.points.clear();
+        self.edge_normals.clear();
+        self.fan.clear();
+        self.fan_usable = 0;
+        self.half_solid_angle = 0.0;
+        self.solid_angle = 0.0;
         let n = vertices.len();
         if !(3..=MAX_CLIP_VERTICES).contains(&n)
             || !x.is_finite()
             || vertices.iter().any(|v| !v.is_finite())
         {
-            return None;
+            return false;
         }
         // Set-up runs in f64, where differences of f32 positions are exact: a small polygon far
         // from `x` or from the world origin keeps its shape, and solid angles near 2π keep their
@@ -205,14 +278,14 @@ impl SphericalPolygon {
             .windows(2)
             .map(|w| (w[0].as_dvec3() - v0).cross(w[1].as_dvec3() - v0))
             .sum();
-        let area = 0.5 * twice_area.length();
-        let winding_normal = twice_area.try_normalize()?;
-        // Arrays are filled in place (`extend`, not `collect`): a collected array is copied
-        // whole, all of its capacity, when it is moved into place.
+        let twice_area_length = twice_area.length();
+        if !(twice_area_length > 0.0 && twice_area_length.is_finite()) {
+            return false;
+        }
+        let winding_normal = twice_area / twice_area_length;
         let mut offsets: ArrayVec<DVec3, MAX_CLIP_VERTICES> = ArrayVec::new();
         offsets.extend(vertices.iter().map(|v| v.as_dvec3() - xd));
         let mean_offset = offsets.iter().copied().sum::<DVec3>() / n as f64;
-        let scale = offsets.iter().map(|r| r.length()).fold(0.0, f64::max);
         // Orient the polygon so that its winding normal points away from x: then `r_i × r_{i+1}`
         // points inside for every edge.
         let mut away = winding_normal;
@@ -220,50 +293,68 @@ impl SphericalPolygon {
             away = -away;
             offsets.reverse();
         }
+        // One length per vertex: the scale of the edge-on test, and the unit directions.
+        let mut unit: ArrayVec<DVec3, MAX_CLIP_VERTICES> = ArrayVec::new();
+        let mut scale = 0.0f64;
+        for r in &offsets {
+            let length = r.length();
+            scale = scale.max(length);
+            unit.push(*r * length.recip());
+        }
         let height = away.dot(mean_offset);
         if height.is_nan() || height <= PLANE_TOLERANCE * scale {
-            return None;
+            return false;
         }
-        let mut unit: ArrayVec<DVec3, MAX_CLIP_VERTICES> = ArrayVec::new();
-        unit.extend(offsets.iter().map(|r| r.normalize()));
-        let mut edge_normals = Verts::new();
-        edge_normals.extend(
-            super::cyclic_pairs(&offsets)
-                .map(|(r, r_next)| r.cross(r_next - r).normalize_or_zero().as_vec3()),
-        );
+        let mut normals: ArrayVec<DVec3, MAX_CLIP_VERTICES> = ArrayVec::new();
+        normals.extend(super::cyclic_pairs(&offsets).map(|(r, r_next)| r.cross(r_next - r)));
         // The fan's apex is the polygon's point nearest x, not a vertex: every polygon point is
         // then less than 90° from it, whereas from x close to a large polygon the diagonals of
         // a vertex fan join nearly opposite directions, whose great circles f32 cannot pin down.
-        let apex = nearest_point(&offsets, height * away).normalize();
-        let mut fan_cdf = ArrayVec::new();
-        let mut total = 0.0;
-        for (a, b) in super::cyclic_pairs(&unit) {
-            total += solid_angle_f64(apex, a, b);
-            fan_cdf.push(total as f32);
+        let apex = nearest_point(&offsets, &normals, height * away).normalize();
+        // The fan's half-angles add as the arguments of their Van Oosterom–Strackee complex
+        // numbers multiply. Every fan triangle is within 90° of the apex, so each half-angle is
+        // below π/2 and their sum, Ω/2, below π; and `|z| <= 4.2`, `|z| >= 1 + v_i·v_{i+1}`,
+        // so the products stay far inside f64's range unless x is within ~1e-10 of the plane
+        // of a polygon of many vertices, when they are rescaled (their arguments stay).
+        let mut cumulative = DVec2::X;
+        for (i, (a, b)) in super::cyclic_pairs(&unit).enumerate() {
+            let z = half_solid_angle_phasor(apex, a, b);
+            // Ω_i > MIN ⇔ tan(Ω_i/2) > MIN/2 (to f64 rounding of the tangent).
+            if z.y > 0.0 && z.y > 0.5 * f64::from(MIN_TRIANGLE_SOLID_ANGLE) * z.x {
+                self.fan_usable |= 1 << i;
+            }
+            cumulative = complex_mul(cumulative, z);
+            let magnitude = cumulative.x.abs() + cumulative.y.abs();
+            if !(1e-150..=1e150).contains(&magnitude) {
+                cumulative /= magnitude;
+            }
+            self.fan.push(cumulative);
         }
-        let solid_angle = total as f32;
+        let half_solid_angle = cumulative.y.atan2(cumulative.x);
+        let solid_angle = (2.0 * half_solid_angle) as f32;
         if !(solid_angle > 0.0 && solid_angle.is_finite()) {
-            return None;
+            self.fan.clear();
+            self.fan_usable = 0;
+            return false;
         }
-        let plane = Plane {
+        self.edge_normals
+            .extend(normals.iter().map(|m| m.normalize_or_zero().as_vec3()));
+        if solid_angle < SMALL_SOLID_ANGLE {
+            self.points.extend(offsets.iter().map(|r| r.as_vec3()));
+        } else {
+            self.points.extend(unit.iter().map(|d| d.as_vec3()));
+        }
+        self.origin = x;
+        self.apex = apex.as_vec3();
+        self.half_solid_angle = half_solid_angle;
+        self.solid_angle = solid_angle;
+        self.plane = Plane {
             n: -away.as_vec3(),
             d: -away.dot(xd + mean_offset) as f32,
         };
-        let mut polygon = SphericalPolygon {
-            origin: x,
-            offsets: Verts::new(),
-            directions: Verts::new(),
-            apex: apex.as_vec3(),
-            edge_normals,
-            fan_cdf,
-            solid_angle,
-            plane,
-            height: height as f32,
-            area: area as f32,
-        };
-        polygon.offsets.extend(offsets.iter().map(|r| r.as_vec3()));
-        polygon.directions.extend(unit.iter().map(|d| d.as_vec3()));
-        Some(polygon)
+        self.height = height as f32;
+        self.area = (0.5 * twice_area_length) as f32;
+        true
     }
 
     /// The point the polygon is seen from.
@@ -295,13 +386,13 @@ impl SphericalPolygon {
     /// A unit direction `wi` through the polygon and its pdf in solid angle.
     pub fn sample(&self, u: Vec2) -> Option<(Vec3, f32)> {
         if self.is_area_sampled() {
-            let wi = sample_polygon_area(&self.offsets, u).try_normalize()?;
+            let wi = sample_polygon_area(&self.points, u).try_normalize()?;
             return Some((wi, self.area_pdf(wi)));
         }
-        let (i, ux) = self.pick_fan_triangle(u.x)?;
-        let d = &self.directions;
-        let next = (i + 1) % d.len();
-        let wi = sample_spherical_triangle(self.apex, d[i], d[next], Vec2::new(ux, u.y))?;
+        let (i, sin_half, cos_half) = self.pick_fan_triangle(u.x)?;
+        let d = &self.points;
+        let next = if i + 1 == d.len() { 0 } else { i + 1 };
+        let wi = sample_spherical_triangle_part(self.apex, d[i], d[next], sin_half, cos_half, u.y)?;
         Some((wi, 1.0 / self.solid_angle))
     }
 
@@ -335,25 +426,34 @@ impl SphericalPolygon {
         self.height * self.height / (self.area * cos_theta * cos_theta * cos_theta)
     }
 
-    /// The fan triangle `(apex, v_i, v_{i+1})` for `u`, picked by solid angle, and `u` rescaled
-    /// to [0, 1) within its bin (so that stratification carries over to the triangle).
-    fn pick_fan_triangle(&self, u: f32) -> Option<(usize, f32)> {
-        let cdf = &self.fan_cdf;
-        let lower = |i: usize| if i == 0 { 0.0 } else { cdf[i - 1] };
-        let target = u * self.solid_angle;
-        let mut i = cdf.partition_point(|&c| c <= target).min(cdf.len() - 1);
-        // `u·Ω` can round up to Ω and land on trailing empty triangles.
-        while i > 0 && cdf[i] <= lower(i) {
-            i -= 1;
+    /// The fan triangle `(apex, v_i, v_{i+1})` for `u`, picked by solid angle, with
+    /// `(sin, cos)` of half the solid angle `A'` that `u` puts in it. This is the map that
+    /// rescales `u` into the triangle's bin of the cumulative solid angles (so stratification
+    /// carries over to the triangle), `A' = 2·(u·Ω/2 − Φ_{i−1})`, done on the complex numbers
+    /// of the fan: one `sin_cos` per sample, no angle per triangle.
+    fn pick_fan_triangle(&self, u: f32) -> Option<(usize, f32, f32)> {
+        let target = f64::from(u) * self.half_solid_angle;
+        let (sin_t, cos_t) = target.sin_cos();
+        let mut picked = None;
+        let mut before = DVec2::X;
+        for (i, &after) in self.fan.iter().enumerate() {
+            if self.fan_usable & (1 << i) != 0 {
+                picked = Some((i, before));
+                // sin(Φ_i − T) ≥ 0 ⇔ Φ_i ≥ T, both angles being in [0, π).
+                if after.y * cos_t - after.x * sin_t >= 0.0 {
+                    break;
+                }
+            }
+            before = after;
         }
-        let width = cdf[i] - lower(i);
-        if width.is_nan() || width <= 0.0 {
-            return None;
-        }
-        Some((
-            i,
-            ((target - lower(i)) / width).clamp(0.0, ONE_MINUS_EPSILON),
-        ))
+        // Past the loop (T rounded just beyond Φ_n) the last usable triangle is kept; its part
+        // then slightly exceeds it, and Arvo's map clamps `c'` to its far vertex.
+        let (i, before) = picked?;
+        let before = before.normalize();
+        // (cos, sin) of T − Φ_{i−1}; a rounding below zero means the triangle's first edge.
+        let sin_part = sin_t * before.x - cos_t * before.y;
+        let cos_part = cos_t * before.x + sin_t * before.y;
+        Some((i, sin_part.max(0.0) as f32, cos_part as f32))
     }
 }
 
@@ -460,6 +560,159 @@ mod tests {
         assert!(sample_spherical_triangle(Vec3::X, Vec3::X, Vec3::Y, u).is_none());
         let mid = (Vec3::X + Vec3::Y).normalize();
         assert!(sample_spherical_triangle(Vec3::X, mid, Vec3::Y, u).is_none());
+    }
+
+    /// Arvo's map as it was before the trigonometry-free form: `c'` from the angle `s`
+    /// (`atan2`, clamped to the arc by `asin`), then `sin`; the reference for the new form.
+    fn sample_by_angles(a: Vec3, b: Vec3, c: Vec3, u: Vec2) -> Option<Vec3> {
+        let area = spherical_triangle_solid_angle(a, b, c);
+        let ac = c - a;
+        let t = (ac - ac.dot(a) * a).try_normalize()?;
+        let arc_ac = if a.dot(c) < 0.0 {
+            PI - 2.0 * (0.5 * (a + c).length()).min(1.0).asin()
+        } else {
+            2.0 * (0.5 * (c - a).length()).min(1.0).asin()
+        };
+        let ab = b - a;
+        let k = ab.dot(t.cross(a)).abs();
+        let b_t = ab.dot(t);
+        let one_plus_cos_ab = 0.5 * (a + b).length_squared();
+        let (sin_half, cos_half) = (0.5 * u.x * area).sin_cos();
+        let half_s = (sin_half * one_plus_cos_ab).atan2(cos_half * k - sin_half * b_t);
+        let s = (2.0 * half_s).min(arc_ac);
+        let sin_quarter = (0.5 * s).sin();
+        let cp_minus_a = -2.0 * sin_quarter * sin_quarter * a + s.sin() * t;
+        let bcp = cp_minus_a - ab;
+        let one_minus_cos = u.y * 0.5 * bcp.length_squared();
+        let sin_theta = (one_minus_cos * (2.0 - one_minus_cos)).max(0.0).sqrt();
+        let e = (bcp - bcp.dot(b) * b).try_normalize()?;
+        (b + (sin_theta * e - one_minus_cos * b)).try_normalize()
+    }
+
+    #[test]
+    fn trigonometry_free_map_matches_the_angle_form() {
+        // Same u, same map: the two forms differ by f32 rounding only, for triangles from
+        // 2 sr down to 1e-6 sr (errors relative to the triangle's angular size √Ω).
+        let mut rng = Rng::new(23, 0);
+        let mut compared = 0;
+        for size in [1.5f32, 0.3, 3e-2, 3e-3] {
+            for _ in 0..200 {
+                let centre = random_unit(&mut rng);
+                let frame = crate::sampling::Frame::from_normal(centre);
+                let mut vertex = || {
+                    let o = size * (2.0 * rng.uniform2() - Vec2::ONE);
+                    (centre + o.x * frame.t + o.y * frame.b).normalize()
+                };
+                let (a, b, c) = (vertex(), vertex(), vertex());
+                let omega = spherical_triangle_solid_angle(a, b, c);
+                if omega < 0.05 * size * size {
+                    continue; // a sliver
+                }
+                for _ in 0..10 {
+                    let u = rng.uniform2();
+                    let (Some(new), Some(old)) = (
+                        sample_spherical_triangle(a, b, c, u),
+                        sample_by_angles(a, b, c, u),
+                    ) else {
+                        panic!("no sample for ({a}, {b}, {c}), u = {u}");
+                    };
+                    let error = (new - old).length() / omega.sqrt();
+                    assert!(error < 2e-3, "Ω = {omega}: {new} vs {old} ({error})");
+                    compared += 1;
+                }
+            }
+        }
+        assert!(compared > 4000, "{compared}");
+    }
+
+    /// A random convex polygon (a circle's points at sorted random angles) in a random plane
+    /// near the origin, and a point in front of it.
+    fn random_polygon(rng: &mut Rng) -> (Vec3, Vec<Vec3>) {
+        let n = 3 + (rng.uniform() * 8.0) as usize;
+        let mut angles: Vec<f32> = (0..n).map(|_| 2.0 * PI * rng.uniform()).collect();
+        angles.sort_by(f32::total_cmp);
+        let normal = random_unit(rng);
+        let frame = crate::sampling::Frame::from_normal(normal);
+        let centre = random_unit(rng) * rng.uniform();
+        let radius = 0.05 + 2.0 * rng.uniform();
+        let vertices = angles
+            .iter()
+            .map(|&a| centre + radius * (a.cos() * frame.t + a.sin() * frame.b))
+            .collect();
+        let height = 0.02 + 3.0 * rng.uniform();
+        let o = 2.0 * radius * (2.0 * rng.uniform2() - Vec2::ONE);
+        (
+            centre + height * normal + o.x * frame.t + o.y * frame.b,
+            vertices,
+        )
+    }
+
+    #[test]
+    fn fan_products_match_summed_solid_angles() {
+        // The fan's cumulative complex products against the sum of its triangles' solid
+        // angles by Van Oosterom–Strackee (an atan2 each, as before), on random polygons.
+        let mut rng = Rng::new(31, 0);
+        let mut checked = 0;
+        for _ in 0..2000 {
+            let (x, vertices) = random_polygon(&mut rng);
+            let Some(polygon) = SphericalPolygon::new(x, &vertices) else {
+                continue;
+            };
+            if polygon.is_area_sampled() {
+                continue;
+            }
+            let (apex, d) = (polygon.apex.as_dvec3(), &polygon.points);
+            let mut sum = 0.0f64;
+            for (i, (p, q)) in crate::sampling::cyclic_pairs(d).enumerate() {
+                sum += solid_angle_f64(apex, p.as_dvec3(), q.as_dvec3());
+                let cumulative = polygon.fan[i];
+                let half = cumulative.y.atan2(cumulative.x);
+                // The stored directions are the f64 ones rounded to f32 (~6e-8 rad).
+                assert!(
+                    (2.0 * half - sum).abs() < 1e-6 * (1.0 + sum),
+                    "{half} vs {sum}"
+                );
+            }
+            let omega = polygon.solid_angle() as f64;
+            assert!((omega - sum).abs() < 1e-6 * (1.0 + sum), "{omega} vs {sum}");
+            checked += 1;
+        }
+        assert!(checked > 1000, "{checked}");
+    }
+
+    #[test]
+    fn fan_pick_matches_rescaling_u_into_its_bin() {
+        // `pick_fan_triangle` against the old map: the triangle whose bin of the cumulative
+        // solid angles holds u·Ω, and u rescaled into it; compared by the sub-triangle's area.
+        let mut rng = Rng::new(37, 0);
+        for _ in 0..500 {
+            let (x, vertices) = random_polygon(&mut rng);
+            let Some(polygon) = SphericalPolygon::new(x, &vertices) else {
+                continue;
+            };
+            if polygon.is_area_sampled() {
+                continue;
+            }
+            let (apex, d) = (polygon.apex.as_dvec3(), &polygon.points);
+            let areas: Vec<f64> = crate::sampling::cyclic_pairs(d)
+                .map(|(p, q)| solid_angle_f64(apex, p.as_dvec3(), q.as_dvec3()))
+                .collect();
+            let total: f64 = areas.iter().sum();
+            for _ in 0..20 {
+                let u = rng.uniform();
+                let (i, sin_half, _) = polygon.pick_fan_triangle(u).unwrap();
+                let target = f64::from(u) * total;
+                let lower: f64 = areas[..i].iter().sum();
+                // Near a bin's edge rounding may pick the neighbour, with a part near 0 or Ω_i.
+                let part = 2.0 * f64::from(sin_half).asin();
+                let expected = target - lower;
+                assert!(
+                    (part - expected).abs() < 1e-5 * total,
+                    "triangle {i}: part {part} vs {expected} (Ω = {total})"
+                );
+                assert!(expected >= -1e-5 * total && expected <= areas[i] + 1e-5 * total);
+            }
+        }
     }
 
     #[test]
