@@ -360,6 +360,7 @@ impl AntishadowPlanes {
 
     /// The region of `x`, in the order of `docs/method.md` §3.3. Points on a plane count as outside the
     /// volume it bounds; a NaN `x` is [`Region::Behind`]. No allocation.
+    #[inline(always)]
     pub fn classify(&self, x: Vec3) -> Region {
         let positive = |q: &Plane| q.signed_distance(x) > 0.0;
         if !positive(&self.portal_plane) {

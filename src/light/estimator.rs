@@ -189,7 +189,9 @@ impl LightSampler {
     }
 
     /// [`Self::context`] into a reused buffer: a context holds a spherical polygon per portal,
-    /// too large to move around per shading point.
+    /// too large to move around per shading point. Inlined with the classification, which
+    /// the renderer's instruction-set variants then compile with their features.
+    #[inline(always)]
     pub fn fill_context(
         &self,
         scene: &impl LightSet,
@@ -204,6 +206,7 @@ impl LightSampler {
     /// estimator unbiased (`docs/method.md` §5): a region only picks the techniques, whose
     /// densities are always evaluated exactly, and alpha's light share covers every direction
     /// to the light. Tests pass deliberately wrong classifiers to show it.
+    #[inline(always)]
     pub fn fill_context_classified(
         &self,
         scene: &impl LightSet,
