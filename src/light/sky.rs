@@ -17,10 +17,10 @@ use super::estimator::MAX_TERMS;
 use super::window::{GuidedBox, Window};
 use super::{LightSet, Strategy, Technique};
 use crate::sampling::pick_by_weight;
+use crate::sampling::spherical::SphericalPolygon;
 
 /// The largest f32 below 1: a stretched uniform number stays in [0, 1).
 const ONE_BELOW: f32 = 1.0 - f32::EPSILON / 2.0;
-use crate::sampling::spherical::SphericalPolygon;
 
 /// How one direction towards the sky is drawn.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
