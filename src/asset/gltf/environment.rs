@@ -182,21 +182,3 @@ pub(super) fn save_environment_inner(
     }
     rewrite_document(file, &source, &json)
 }
-
-/// Writes the edited document `json` over `file`, keeping a GLB's binary chunk as it was.
-fn rewrite_document(file: &Path, source: &Source, json: &Value) -> Result<(), GltfError> {
-    let text = if source.is_glb {
-        serde_json::to_vec(json)
-    } else {
-        serde_json::to_vec_pretty(json)
-    }
-    .map_err(|e| internal(file, e))?;
-    // What is written must read back.
-    parse_document(file, &text)?;
-    let bytes = if source.is_glb {
-        glb_bytes(file, text, source.bin().map(<[u8]>::to_vec))?
-    } else {
-        text
-    };
-    write_atomically(file, &bytes)
-}

@@ -166,11 +166,19 @@ pub(super) fn save_portals_inner(file: &Path, portals: &[PortalDesc]) -> Result<
             json_array(file, &mut json, key)?.extend(values);
         }
     }
+    rewrite_document(file, &source, &json)
+}
 
+/// Writes the edited document `json` over `file`, keeping a GLB's binary chunk as it was.
+pub(super) fn rewrite_document(
+    file: &Path,
+    source: &Source,
+    json: &Value,
+) -> Result<(), GltfError> {
     let text = if source.is_glb {
-        serde_json::to_vec(&json)
+        serde_json::to_vec(json)
     } else {
-        serde_json::to_vec_pretty(&json)
+        serde_json::to_vec_pretty(json)
     }
     .map_err(|e| internal(file, e))?;
     // What is written must read back.
