@@ -19,7 +19,7 @@ use super::punctual::Lamp;
 use super::{LightSet, Strategy, Technique};
 use crate::sampling::polygon::{Plane, Verts, clip_convex_into, convex_hull_in_plane, merge_close};
 use crate::sampling::spherical::SphericalPolygon;
-use crate::sampling::{Distribution1D, cyclic_pairs, pick_by_weight};
+use crate::sampling::{Distribution1D, pick_by_weight};
 
 /// The most portals one shading point can use for one light.
 pub const MAX_TERMS: usize = 8;
@@ -430,56 +430,15 @@ pub fn term_pdf(scene: &impl LightSet, x: Vec3, term: &PortalTerm, p_light: f32,
     }
 }
 
-/// A direction through a uniform point of the portal, with its solid-angle pdf. The point is
-/// drawn as an offset from `x` (`ConvexPolygon::sample_uniform_offset`), so the direction is
-/// good to a few ulps of the angle even for a small portal far from the world origin.
+/// The portal technique: a direction through a uniform point of the portal, with its
+/// solid-angle pdf ([`ConvexPolygon::sample_direction`]).
 pub fn sample_portal(portal: &Portal, x: Vec3, u: Vec2) -> Option<(Vec3, f32)> {
-    let v = portal.polygon.sample_uniform_offset(x, u);
-    let dist = v.length();
-    let wi = v / dist;
-    let cos = portal.polygon.normal().dot(wi).abs();
-    (dist > 0.0 && cos > 0.0).then(|| (wi, dist * dist / (portal.polygon.area() * cos)))
+    portal.polygon.sample_direction(x, u)
 }
 
-/// Slack of [`portal_pdf`]'s inside test, as a distance on the portal's plane per unit of
-/// `t + reach` (`t` the distance along the ray, `reach` the portal's largest vertex offset from
-/// its first vertex). [`sample_portal`]'s offset `(v_0 − x) + b_1·e_1 + b_2·e_2` is rounded by a
-/// few ulps of those lengths, and its normalisation by one more ulp of `t`: 8 ulps cover both.
-/// A band this wide around the portal gets a pdf that no sample reaches; its share of the
-/// portal's area is `perimeter · slack / area`, 1e-4 for a 4 cm portal 2 m away.
-const PORTAL_EDGE_SLACK: f64 = 8.0 * f32::EPSILON as f64;
-
-/// Solid-angle pdf of uniform portal sampling: `d² / (A_P |cos θ_P|)` through the portal.
-///
-/// Computed in f64 relative to `x` (differences of f32 positions are exact there), with the
-/// inside test against the planes through `x` and each edge, allowing [`PORTAL_EDGE_SLACK`]: a
-/// direction [`sample_portal`] drew near an edge must never be judged outside its own portal,
-/// or its sample would be weighted by a mixture pdf without the term that drew it.
+/// The solid-angle pdf of [`sample_portal`]: `d² / (A_P |cos θ_P|)` through the portal.
 pub fn portal_pdf(portal: &Portal, x: Vec3, wi: Vec3) -> f32 {
-    let polygon = &portal.polygon;
-    let vertices = polygon.vertices();
-    let (xd, w, n) = (x.as_dvec3(), wi.as_dvec3(), polygon.normal().as_dvec3());
-    let v0 = vertices[0].as_dvec3();
-    // The plane's signed distance from x along n, and the ray's distance to it.
-    let height = n.dot(v0 - xd);
-    let cos = n.dot(w);
-    let t = height / cos;
-    if !(t > 0.0 && t.is_finite()) {
-        return 0.0;
-    }
-    let slack = PORTAL_EDGE_SLACK * (t + portal.reach);
-    // With counter-clockwise vertices around n, `(a − x) × (b − a)` has `sign(height) · w`
-    // on its positive side for w through the portal; `t · m̂ · w` is the hit's distance to
-    // the plane through x and the edge.
-    let inside = cyclic_pairs(vertices).all(|(a, b)| {
-        let (a, b) = (a.as_dvec3(), b.as_dvec3());
-        let m = (a - xd).cross(b - a);
-        height.signum() * m.dot(w) * t >= -slack * m.length()
-    });
-    if !inside {
-        return 0.0;
-    }
-    (t * t / (f64::from(polygon.area()) * cos.abs())) as f32
+    portal.polygon.direction_pdf(x, wi)
 }
 
 /// `Q(x)`: the light (clipped behind the portal plane; for a light of any shape, its solid)

@@ -53,9 +53,6 @@ pub struct Portal {
     /// of any other shape, which its planes treat as a solid (`docs/method.md` §3.6).
     pub light_polygon: Option<ConvexPolygon>,
     pub planes: AntishadowPlanes,
-    /// The largest distance of a portal vertex from its first: scales the slack of the
-    /// portal pdf's inside test (fixed per portal, so not recomputed per evaluation).
-    pub reach: f64,
 }
 
 impl Portal {
@@ -107,14 +104,7 @@ impl Portal {
                 (polygon, None, planes)
             }
         };
-        let v0 = polygon.vertices()[0].as_dvec3();
-        let reach = polygon
-            .vertices()
-            .iter()
-            .map(|v| v.as_dvec3().distance(v0))
-            .fold(0.0, f64::max);
         Ok(Portal {
-            reach,
             name: portal,
             desc_index,
             light,

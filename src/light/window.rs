@@ -37,7 +37,6 @@ pub struct Window {
     /// The window, its normal pointing to its front (into the room).
     pub polygon: ConvexPolygon,
     /// The largest distance of a vertex from the first: scales the inside test's slack.
-    reach: f64,
     frame: WindowFrame,
     /// The environment's weight over the window's directions, when there is an image to follow.
     guided: Option<GuidedTable>,
@@ -53,10 +52,6 @@ struct WindowFrame {
     /// The window's bounding box in `(s, t)` about `centre`: `[s_min, s_max, t_min, t_max]`.
     bounds: [f64; 4],
 }
-
-/// Slack of the inside test, as a distance on the window's plane per unit of `t + reach`
-/// (as for area-light portals: a direction drawn near an edge is never judged outside).
-const EDGE_SLACK: f64 = 8.0 * f32::EPSILON as f64;
 
 impl Window {
     /// Validates `desc`, the `desc_index`-th portal of its scene. Its front is its winding's
@@ -78,12 +73,6 @@ impl Window {
                 error,
             }
         })?;
-        let v0 = polygon.vertices()[0].as_dvec3();
-        let reach = polygon
-            .vertices()
-            .iter()
-            .map(|v| v.as_dvec3().distance(v0))
-            .fold(0.0, f64::max);
         let frame = WindowFrame::new(&polygon);
         let guided = environment.filter(|e| !e.is_constant()).map(|e| {
             GuidedTable::new(
@@ -96,7 +85,6 @@ impl Window {
             desc_index,
             alpha: desc.alpha,
             polygon,
-            reach,
             frame,
             guided,
         })
@@ -114,41 +102,18 @@ impl Window {
 
     /// A direction through a uniform point of the window, with its solid-angle pdf.
     pub fn sample_area(&self, x: Vec3, u: Vec2) -> Option<(Vec3, f32)> {
-        let v = self.polygon.sample_uniform_offset(x, u);
-        let dist = v.length();
-        let wi = v / dist;
-        let cos = self.polygon.normal().dot(wi).abs();
-        (dist > 0.0 && cos > 0.0).then(|| (wi, dist * dist / (self.polygon.area() * cos)))
+        self.polygon.sample_direction(x, u)
     }
 
     /// The solid-angle pdf of [`Self::sample_area`]: `d² / (A |cos θ|)` through the window.
     pub fn area_pdf(&self, x: Vec3, wi: Vec3) -> f32 {
-        match self.through(x, wi) {
-            Some((t, cos)) => (t * t / (f64::from(self.polygon.area()) * cos.abs())) as f32,
-            None => 0.0,
-        }
+        self.polygon.direction_pdf(x, wi)
     }
 
     /// If the ray `x + t·wi` (`t > 0`) passes through the window: `t` and the cosine with its
-    /// normal. In f64 relative to `x`, with [`EDGE_SLACK`].
+    /// normal ([`ConvexPolygon::ray_through`]).
     pub fn through(&self, x: Vec3, wi: Vec3) -> Option<(f64, f64)> {
-        let polygon = &self.polygon;
-        let vertices = polygon.vertices();
-        let (xd, w, n) = (x.as_dvec3(), wi.as_dvec3(), polygon.normal().as_dvec3());
-        let v0 = vertices[0].as_dvec3();
-        let height = n.dot(v0 - xd);
-        let cos = n.dot(w);
-        let t = height / cos;
-        if !(t > 0.0 && t.is_finite()) {
-            return None;
-        }
-        let slack = EDGE_SLACK * (t + self.reach);
-        let inside = cyclic_pairs(vertices).all(|(a, b)| {
-            let (a, b) = (a.as_dvec3(), b.as_dvec3());
-            let m = (a - xd).cross(b - a);
-            height.signum() * m.dot(w) * t >= -slack * m.length()
-        });
-        inside.then_some((t, cos))
+        self.polygon.ray_through(x, wi)
     }
 
     /// The window seen from `x`, for sampling by solid angle (`None` edge-on).

@@ -88,6 +88,26 @@ pub struct ConvexPolygon {
     plane: Plane,
     /// Cumulative areas of the fan triangles `(v0, v_i, v_{i+1})`, for area sampling.
     fan_cdf: ArrayVec<f32, MAX_POLYGON_VERTICES>,
+    /// The largest distance of a vertex from the first: scales the slack of
+    /// [`Self::ray_through`] (fixed per polygon, so not recomputed per evaluation).
+    reach: f64,
+}
+
+/// Slack of [`ConvexPolygon::ray_through`]'s inside test, as a distance on the polygon's plane
+/// per unit of `t + reach` (`t` the distance along the ray). [`ConvexPolygon::sample_direction`]'s
+/// offset `(v_0 − x) + b_1·e_1 + b_2·e_2` is rounded by a few ulps of those lengths, and its
+/// normalisation by one more ulp of `t`: 8 ulps cover both. A band this wide around the
+/// polygon gets a pdf that no sample reaches; its share of the area is
+/// `perimeter · slack / area`, 1e-4 for a 4 cm portal 2 m away.
+const EDGE_SLACK: f64 = 8.0 * f32::EPSILON as f64;
+
+/// The largest distance of a vertex from the first.
+fn reach(vertices: &[Vec3]) -> f64 {
+    let v0 = vertices.first().map_or(glam::DVec3::ZERO, |v| v.as_dvec3());
+    vertices
+        .iter()
+        .map(|v| v.as_dvec3().distance(v0))
+        .fold(0.0, f64::max)
 }
 
 impl ConvexPolygon {
@@ -159,6 +179,7 @@ impl ConvexPolygon {
         let centroid = area_centroid(&vertices, normal);
         let fan_cdf = fan_cdf(&vertices);
         Ok(ConvexPolygon {
+            reach: reach(&vertices),
             vertices,
             normal,
             area,
@@ -243,6 +264,7 @@ impl ConvexPolygon {
         vertices.reverse();
         ConvexPolygon {
             fan_cdf: fan_cdf(&vertices),
+            reach: reach(&vertices),
             vertices,
             normal: -self.normal,
             plane: self.plane.flipped(),
@@ -272,6 +294,55 @@ impl ConvexPolygon {
         let (i, b) = self.pick_fan_point(u);
         let v = &self.vertices;
         (v[0] - origin) + b.y * (v[i + 1] - v[0]) + (1.0 - b.x - b.y) * (v[i + 2] - v[0])
+    }
+
+    /// A direction from `x` through a uniform point of the polygon, with its solid-angle pdf
+    /// `d² / (A |cos θ|)`. The point is drawn as an offset from `x`
+    /// ([`Self::sample_uniform_offset`]), so the direction is good to a few ulps of the angle
+    /// even for a small polygon far from the world origin.
+    pub fn sample_direction(&self, x: Vec3, u: Vec2) -> Option<(Vec3, f32)> {
+        let v = self.sample_uniform_offset(x, u);
+        let dist = v.length();
+        let wi = v / dist;
+        let cos = self.normal.dot(wi).abs();
+        (dist > 0.0 && cos > 0.0).then(|| (wi, dist * dist / (self.area * cos)))
+    }
+
+    /// The solid-angle pdf of [`Self::sample_direction`]: `d² / (A |cos θ|)` through the
+    /// polygon, 0 for a direction that misses it.
+    pub fn direction_pdf(&self, x: Vec3, wi: Vec3) -> f32 {
+        match self.ray_through(x, wi) {
+            Some((t, cos)) => (t * t / (f64::from(self.area) * cos.abs())) as f32,
+            None => 0.0,
+        }
+    }
+
+    /// If the ray `x + t·wi` (`t > 0`) passes through the polygon: `t` and the cosine of `wi`
+    /// with the normal. Computed in f64 relative to `x` (differences of f32 positions are exact
+    /// there), with the inside test against the planes through `x` and each edge, allowing
+    /// [`EDGE_SLACK`]: a direction [`Self::sample_direction`] drew near an edge must never be
+    /// judged outside, or its sample would be weighted by a mixture pdf without its own term.
+    pub fn ray_through(&self, x: Vec3, wi: Vec3) -> Option<(f64, f64)> {
+        let vertices = self.vertices();
+        let (xd, w, n) = (x.as_dvec3(), wi.as_dvec3(), self.normal.as_dvec3());
+        let v0 = vertices.first()?.as_dvec3();
+        // The plane's signed distance from x along n, and the ray's distance to it.
+        let height = n.dot(v0 - xd);
+        let cos = n.dot(w);
+        let t = height / cos;
+        if !(t > 0.0 && t.is_finite()) {
+            return None;
+        }
+        let slack = EDGE_SLACK * (t + self.reach);
+        // With counter-clockwise vertices around n, `(a − x) × (b − a)` has `sign(height) · w`
+        // on its positive side for w through the polygon; `t · m̂ · w` is the hit's distance to
+        // the plane through x and the edge.
+        let inside = super::cyclic_pairs(vertices).all(|(a, b)| {
+            let (a, b) = (a.as_dvec3(), b.as_dvec3());
+            let m = (a - xd).cross(b - a);
+            height.signum() * m.dot(w) * t >= -slack * m.length()
+        });
+        inside.then_some((t, cos))
     }
 
     /// The fan triangle `(v_0, v_{i+1}, v_{i+2})` for `u.x` and barycentrics in it.
