@@ -47,6 +47,10 @@ pub struct CompareArgs {
     /// Samples per pixel of the reference, instead of a time.
     #[arg(long)]
     pub reference_spp: Option<u32>,
+    /// Replace every portal's and window's alpha (probability of sampling the light or the
+    /// environment itself) in the compared renders; the reference keeps the scene's.
+    #[arg(long)]
+    pub alpha: Option<f32>,
     /// Where references are cached, by a hash of the scene, camera, size and depth [default:
     /// $XDG_CACHE_HOME/portalview or ~/.cache/portalview]. A cached reference is reused when
     /// it had at least the requested time or spp.
@@ -69,6 +73,9 @@ pub fn run(args: &CompareArgs) -> Result<()> {
         args.seconds
     );
     anyhow::ensure!(args.width > 0, "--width must be positive");
+    if let Some(a) = args.alpha {
+        anyhow::ensure!((0.0..=1.0).contains(&a), "--alpha {a} is not in [0, 1]");
+    }
     anyhow::ensure!(!args.strategies.is_empty(), "--strategies lists none");
     for (i, s) in args.strategies.iter().enumerate() {
         anyhow::ensure!(
@@ -167,6 +174,7 @@ pub fn run(args: &CompareArgs) -> Result<()> {
             image,
             seed: args.image.seed,
             sampler: args.image.sampler,
+            alpha: args.alpha,
         };
         let progress = progress_bar(0, "{bar:40} {msg}  {elapsed_precise}");
         let comparison = compare(&scene, &settings, &reference, &progress);

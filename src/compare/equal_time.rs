@@ -5,7 +5,7 @@ use indicatif::ProgressBar;
 use std::sync::atomic::AtomicBool;
 use std::time::Instant;
 
-use super::metrics::{mse, relmse};
+use super::metrics::{mse, mse_above_floor, relmse};
 use super::reference::{ImageSpec, Reference, ReferenceInfo, ReferenceOrigin};
 use crate::light::Strategy;
 use crate::render::film::Film;
@@ -112,6 +112,22 @@ impl EqualTime {
     }
 }
 
+/// Each result's efficiency over light sampling's, from the raw MSE and from the MSE less the
+/// reference's floor (at equal time both are ratios of inverse errors times times).
+pub fn set_efficiency_ratios(results: &mut [StrategyResult]) {
+    let light = results.iter().find(|r| r.strategy == Strategy::Light);
+    let raw = light.map(|r| r.efficiency);
+    let above = light.and_then(|r| Some(1.0 / (r.mse_above_floor? * r.seconds)));
+    for r in results {
+        r.efficiency_vs_light = raw.map(|l| r.efficiency / l).filter(|e| e.is_finite());
+        r.efficiency_vs_light_above_floor = r
+            .mse_above_floor
+            .zip(above)
+            .map(|(e, l)| 1.0 / (e * r.seconds) / l)
+            .filter(|e| e.is_finite());
+    }
+}
+
 /// What one comparison renders.
 #[derive(Clone, Debug, PartialEq)]
 pub struct CompareSettings {
@@ -122,6 +138,9 @@ pub struct CompareSettings {
     pub seed: u64,
     /// The compared renders' random numbers (the reference's are always independent).
     pub sampler: SamplerKind,
+    /// Replaces every portal's and window's alpha in the compared renders (not in the
+    /// reference's, whose converged image does not depend on it).
+    pub alpha: Option<f32>,
 }
 
 /// One recorded point of a strategy's convergence.
@@ -146,6 +165,11 @@ pub struct StrategyResult {
     pub efficiency: f64,
     /// `efficiency` over light sampling's; `None` without light sampling in the comparison.
     pub efficiency_vs_light: Option<f64>,
+    /// `mse` less the reference's noise floor ([`mse_above_floor`]): `None` without a known
+    /// floor or at or below it.
+    pub mse_above_floor: Option<f64>,
+    /// The efficiency ratio to light sampling's from `mse_above_floor` (both must be known).
+    pub efficiency_vs_light_above_floor: Option<f64>,
     pub stats: Stats,
 }
 
@@ -178,7 +202,7 @@ pub fn compare(
     let image = settings.image;
     let render = RenderSettings {
         strategy: Strategy::Light,
-        alpha: None,
+        alpha: settings.alpha,
         max_depth: image.max_depth,
         seed: settings.seed,
         sampler: settings.sampler,
@@ -224,6 +248,7 @@ pub fn compare(
             .collect();
         progress.set_message(format!("{} spp", spp.join(", ")));
     }
+    let floor = reference.info.as_ref().map(|i| i.convergence.mse_floor);
     let mut results: Vec<StrategyResult> = schedule
         .runs()
         .iter()
@@ -238,17 +263,13 @@ pub fn compare(
                 relmse: relmse(&mean, &reference.pixels),
                 efficiency: 1.0 / (error * run.seconds),
                 efficiency_vs_light: None,
+                mse_above_floor: mse_above_floor(error, floor),
+                efficiency_vs_light_above_floor: None,
                 stats: run.stats,
             }
         })
         .collect();
-    let light = results
-        .iter()
-        .find(|r| r.strategy == Strategy::Light)
-        .map(|r| r.efficiency);
-    for r in &mut results {
-        r.efficiency_vs_light = light.map(|l| r.efficiency / l).filter(|e| e.is_finite());
-    }
+    set_efficiency_ratios(&mut results);
     SceneComparison {
         scene: scene.name.clone(),
         settings: settings.clone(),

@@ -50,6 +50,15 @@ fn mean_channel_error(
     sum / (3 * image.len()) as f64
 }
 
+/// The MSE with the reference's noise floor taken out: the reference's noise is independent of
+/// the image's, so the measured MSE is the true MSE plus the floor and `mse − floor` is an
+/// unbiased estimate of the true MSE. `None` where that is not positive (an image the reference
+/// cannot tell from the truth), or without a floor.
+pub fn mse_above_floor(mse: f64, floor: Option<f64>) -> Option<f64> {
+    let floor = floor.filter(|f| f.is_finite() && *f >= 0.0)?;
+    Some(mse - floor).filter(|e| e.is_finite() && *e > 0.0)
+}
+
 /// How converged a rendered image is, from its film's per-pixel variance of the mean.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Convergence {
@@ -88,5 +97,22 @@ impl Convergence {
             mse_floor: floor / channels,
             relmse_floor: rel_floor / channels,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_floor_is_subtracted_only_when_known_and_below_the_mse() {
+        let above = mse_above_floor(3e-5, Some(1e-5)).unwrap_or(0.0);
+        assert!((above - 2e-5).abs() < 1e-18, "{above}");
+        assert_eq!(mse_above_floor(3e-5, Some(0.0)), Some(3e-5));
+        // Below the floor the reference cannot measure the error.
+        assert_eq!(mse_above_floor(1e-5, Some(2e-5)), None);
+        assert_eq!(mse_above_floor(1e-5, Some(1e-5)), None);
+        assert_eq!(mse_above_floor(1e-5, None), None);
+        assert_eq!(mse_above_floor(1e-5, Some(f64::NAN)), None);
     }
 }

@@ -5,7 +5,8 @@
 //! Quality is MSE against the reference over equal *time*. The reference is rendered with
 //! antishadow sampling (the best strategy) from a different seed than the compared renders, so
 //! its own noise is independent of theirs: it adds its per-pixel variance (the *noise floor*)
-//! to every measured MSE. That floor is reported beside the results, never subtracted.
+//! to every measured MSE. That floor is reported beside the results, and the reports give each
+//! error and efficiency both as measured and with the floor subtracted.
 
 mod equal_time;
 mod metrics;

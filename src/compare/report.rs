@@ -130,8 +130,8 @@ fn reference_markdown(info: Option<&ReferenceInfo>, origin: &ReferenceOrigin) ->
                 out,
                 "{} sampling, {} spp in {:.1} s (seed {:#x}). Mean relative standard error of \
                  its pixels: {:.3}%. Its noise floor, {} in MSE and {} in relMSE, is included \
-                 in every measured error above (not subtracted): errors within a few times \
-                 the floor are limited by the reference.",
+                 in every measured error above (the MSE − floor columns take it out): errors \
+                 within a few times the floor are limited by the reference.",
                 i.strategy.name(),
                 i.spp,
                 i.seconds,
@@ -163,27 +163,34 @@ pub fn summary_markdown(c: &SceneComparison) -> String {
     );
     let floor = c.reference_info.as_ref().map(|i| i.convergence.mse_floor);
     out.push_str(
-        "| strategy | spp | seconds | MSE | relMSE | efficiency vs light | MSE / reference floor |\n",
+        "| strategy | spp | seconds | MSE | MSE − floor | relMSE | efficiency vs light | \
+         (MSE − floor) | MSE / reference floor |\n",
     );
-    out.push_str("|---|---:|---:|---:|---:|---:|---:|\n");
+    out.push_str("|---|---:|---:|---:|---:|---:|---:|---:|---:|\n");
     for r in &c.results {
         let over_floor = floor.filter(|&f| f > 0.0).map(|f| r.mse / f);
         let _ = writeln!(
             out,
-            "| {} | {} | {:.2} | {} | {} | {} | {} |",
+            "| {} | {} | {:.2} | {} | {} | {} | {} | {} | {} |",
             r.strategy.name(),
             r.spp,
             r.seconds,
             sci(r.mse),
+            r.mse_above_floor.map_or("–".to_owned(), sci),
             sci(r.relmse),
             ratio(r.efficiency_vs_light),
+            ratio(r.efficiency_vs_light_above_floor),
             over_floor.map_or("–".to_owned(), |v| format!("{v:.1}"))
         );
     }
     let _ = writeln!(
         out,
         "\nEfficiency is 1 / (MSE × seconds), relative to light sampling's: above 1 is better. \
-         relMSE = mean of (x − r)² / (r² + {RELMSE_EPSILON}) over pixels and channels.\n"
+         The reference's noise is independent of the compared images', so the measured MSE is \
+         the true MSE plus the reference's floor: MSE − floor estimates the true MSE without \
+         bias, and the efficiency from it is what a perfect reference would show (– where the \
+         MSE is within the floor). relMSE = mean of (x − r)² / (r² + {RELMSE_EPSILON}) over \
+         pixels and channels.\n"
     );
     out.push_str(&reference_markdown(
         c.reference_info.as_ref(),
@@ -203,23 +210,31 @@ pub fn figure8_markdown(comparisons: &[SceneComparison]) -> String {
             s.image.width, s.image.height, s.image.max_depth, s.seed, s.seconds
         );
     }
-    out.push_str("| scene | strategy | spp | seconds | MSE | efficiency vs light |\n");
-    out.push_str("|---|---|---:|---:|---:|---:|\n");
+    out.push_str(
+        "| scene | strategy | spp | seconds | MSE | MSE − floor | efficiency vs light | \
+         (MSE − floor) |\n",
+    );
+    out.push_str("|---|---|---:|---:|---:|---:|---:|---:|\n");
     for c in comparisons {
         for r in &c.results {
             let _ = writeln!(
                 out,
-                "| {} | {} | {} | {:.2} | {} | {} |",
+                "| {} | {} | {} | {:.2} | {} | {} | {} | {} |",
                 c.scene,
                 r.strategy.name(),
                 r.spp,
                 r.seconds,
                 sci(r.mse),
-                ratio(r.efficiency_vs_light)
+                r.mse_above_floor.map_or("–".to_owned(), sci),
+                ratio(r.efficiency_vs_light),
+                ratio(r.efficiency_vs_light_above_floor)
             );
         }
     }
-    out.push_str("\nEfficiency is 1 / (MSE × seconds), relative to light sampling's.\n\n");
+    out.push_str(
+        "\nEfficiency is 1 / (MSE × seconds), relative to light sampling's; the (MSE − floor) \
+         column takes the reference's noise floor out of both errors first.\n\n",
+    );
     for c in comparisons {
         let best = c
             .results
@@ -360,4 +375,104 @@ pub fn write_figure8_outputs(dir: &Path, comparisons: &[SceneComparison]) -> Res
     let plot = convergence_svg(comparisons).with_context(|| svg.display().to_string())?;
     write_file(&svg, plot.as_bytes())?;
     Ok(vec![csv, md, svg])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::compare::metrics::{Convergence, mse_above_floor};
+    use crate::compare::{CompareSettings, ImageSpec, StrategyResult, set_efficiency_ratios};
+    use crate::render::stats::Stats;
+
+    fn result(strategy: Strategy, mse: f64, floor: f64) -> StrategyResult {
+        StrategyResult {
+            strategy,
+            spp: 10,
+            seconds: 2.0,
+            mse,
+            relmse: mse,
+            efficiency: 1.0 / (mse * 2.0),
+            efficiency_vs_light: None,
+            mse_above_floor: mse_above_floor(mse, Some(floor)),
+            efficiency_vs_light_above_floor: None,
+            stats: Stats::default(),
+        }
+    }
+
+    fn comparison(floor: f64, antishadow_mse: f64) -> SceneComparison {
+        let mut results = vec![
+            result(Strategy::Light, 5e-5, floor),
+            result(Strategy::Antishadow, antishadow_mse, floor),
+        ];
+        set_efficiency_ratios(&mut results);
+        SceneComparison {
+            scene: "window".to_owned(),
+            settings: CompareSettings {
+                strategies: vec![Strategy::Light, Strategy::Antishadow],
+                seconds: 2.0,
+                image: ImageSpec {
+                    width: 4,
+                    height: 3,
+                    max_depth: 1,
+                },
+                seed: 0,
+                sampler: Default::default(),
+                alpha: None,
+            },
+            reference_info: Some(ReferenceInfo {
+                key: "window-0".to_owned(),
+                scene: "window".to_owned(),
+                width: 4,
+                height: 3,
+                max_depth: 1,
+                strategy: Strategy::Antishadow,
+                seed: 1,
+                spp: 100,
+                seconds: 20.0,
+                convergence: Convergence {
+                    mean_relative_standard_error: 0.01,
+                    mse_floor: floor,
+                    relmse_floor: floor,
+                },
+            }),
+            reference_origin: ReferenceOrigin::Rendered(None),
+            points: Vec::new(),
+            results,
+        }
+    }
+
+    /// Light at 5e-5 and antishadow at 2e-5 over a floor of 1e-5: 2.5× raw, 4× (4e-5 / 1e-5)
+    /// with the floor out. Negative case: at a floor of 0 the two columns agree, and an MSE
+    /// within the floor shows a dash instead of an efficiency.
+    #[test]
+    fn the_summary_gives_raw_and_floor_subtracted_efficiency() {
+        let c = comparison(1e-5, 2e-5);
+        let a = &c.results[1];
+        assert!((a.efficiency_vs_light.unwrap_or(0.0) - 2.5).abs() < 1e-9);
+        assert!((a.efficiency_vs_light_above_floor.unwrap_or(0.0) - 4.0).abs() < 1e-9);
+        let md = summary_markdown(&c);
+        assert!(md.contains("| MSE − floor |"), "{md}");
+        let row = md
+            .lines()
+            .find(|l| l.starts_with("| antishadow"))
+            .unwrap_or_default();
+        assert!(
+            row.contains("| 1.000e-5 |") && row.contains("| 2.50× | 4.00× |"),
+            "{row}"
+        );
+        let f8 = figure8_markdown(std::slice::from_ref(&c));
+        assert!(f8.contains("| 2.50× | 4.00× |"), "{f8}");
+
+        let no_floor = comparison(0.0, 2e-5);
+        let a = &no_floor.results[1];
+        assert_eq!(a.efficiency_vs_light, a.efficiency_vs_light_above_floor);
+        let within = comparison(3e-5, 2e-5);
+        assert_eq!(within.results[1].efficiency_vs_light_above_floor, None);
+        let md = summary_markdown(&within);
+        let row = md
+            .lines()
+            .find(|l| l.starts_with("| antishadow"))
+            .unwrap_or_default();
+        assert!(row.contains("| 2.50× | – |"), "{row}");
+    }
 }
