@@ -72,21 +72,97 @@ impl Axis {
     }
 }
 
-/// The density `T(α, β)`, constant on each cell, with its summed-area table (whose bilinear
-/// interpolation within a cell is `T`'s exact integral from the corner `(−π/2, −π/2)`) and
-/// each column's running integral in `β`.
+/// The density `T(α, β)`, constant on each cell, as each column's running integral in `β`
+/// (`T` is its difference over the cell's width, so the draw and the pdf read the same two
+/// numbers), with its summed-area table (whose bilinear interpolation within a cell is `T`'s
+/// exact integral from the corner `(−π/2, −π/2)`).
 #[derive(Clone, Debug)]
 pub struct GuidedTable {
     alpha: Axis,
     beta: Axis,
-    /// `T[c·B + r]`, `c` the cell in `α`, `r` in `β`, `B` the cells in `β` (column-major: a
-    /// column's cells are contiguous for the draw in `β`).
-    weights: Vec<f64>,
-    /// `S[r·(A+1) + c]`: the integral of `T` over `α < edge c`, `β < edge r` (row-major: the
-    /// draw in `α` searches along rows).
+    /// `S[r·(A+1) + c]`: the integral of `T` over `α < edge c`, `β < edge r`, `A` the cells in
+    /// `α` (row-major: the draw in `α` searches along rows).
     summed: Vec<f64>,
-    /// `C[c·(B+1) + r]`: column `c`'s integral from `β = −π/2` to its edge `r`.
+    /// `C[c·(B+1) + r]`: column `c`'s integral from `β = −π/2` to its edge `r`, `B` the cells
+    /// in `β` (a column's are contiguous for the draw in `β`).
     column_cdf: Vec<f64>,
+    /// Every [`STRIDE`]-th and [`STRIDE`]²-th entry of each row of `S` and of each column's
+    /// `C`, contiguous, for the searches.
+    summed_index: SearchIndex,
+    column_index: SearchIndex,
+}
+
+/// Entries `k·STRIDE` (`fine`) and `k·STRIDE²` (`coarse`) of `lines` sequences of `len`
+/// numbers each, stored contiguously per sequence: a search scans the coarse entries, then
+/// the `STRIDE` fine ones of the block it found, then `STRIDE` of the sequence's own, so it
+/// reads three or four cache lines per sequence, the loads of each scan independent of one
+/// another, instead of a binary search's ten dependent ones (the table is megabytes, so the
+/// loads miss the cache and their latency was most of a draw's cost).
+#[derive(Clone, Debug)]
+struct SearchIndex {
+    fine: Vec<f64>,
+    coarse: Vec<f64>,
+    fine_len: usize,
+    coarse_len: usize,
+}
+
+/// The search index's step: eight f64 are one 64-byte cache line.
+const STRIDE: usize = 8;
+
+impl SearchIndex {
+    /// The index of `lines` sequences of `len` numbers, sequence `i` at `data[i·len..]`.
+    fn new(data: &[f64], lines: usize, len: usize) -> Self {
+        let fine_len = len.div_ceil(STRIDE);
+        let coarse_len = len.div_ceil(STRIDE * STRIDE);
+        let mut fine = Vec::with_capacity(lines * fine_len);
+        let mut coarse = Vec::with_capacity(lines * coarse_len);
+        for line in data.chunks_exact(len).take(lines) {
+            fine.extend(line.iter().step_by(STRIDE));
+            coarse.extend(line.iter().step_by(STRIDE * STRIDE));
+        }
+        SearchIndex {
+            fine,
+            coarse,
+            fine_len,
+            coarse_len,
+        }
+    }
+
+    fn fine(&self, line: usize) -> &[f64] {
+        &self.fine[line * self.fine_len..(line + 1) * self.fine_len]
+    }
+
+    fn coarse(&self, line: usize) -> &[f64] {
+        &self.coarse[line * self.coarse_len..(line + 1) * self.coarse_len]
+    }
+}
+
+/// The first `j` in `0..len` with `value(j) > target` (`len` if none) for a nondecreasing
+/// `value`, given it at every `STRIDE²`-th `j` (`coarse(k) = value(k·STRIDE²)`) and every
+/// `STRIDE`-th (`fine(k) = value(k·STRIDE)`): three short scans.
+fn first_above(
+    target: f64,
+    len: usize,
+    coarse: impl Fn(usize) -> f64,
+    fine: impl Fn(usize) -> f64,
+    value: impl Fn(usize) -> f64,
+) -> usize {
+    let (coarse_len, fine_len) = (len.div_ceil(STRIDE * STRIDE), len.div_ceil(STRIDE));
+    let mut b = 0;
+    while b + 1 < coarse_len && coarse(b + 1) <= target {
+        b += 1;
+    }
+    let mut m = b * STRIDE;
+    let fine_end = ((b + 1) * STRIDE).min(fine_len);
+    while m + 1 < fine_end && fine(m + 1) <= target {
+        m += 1;
+    }
+    let mut j = m * STRIDE;
+    let end = ((m + 1) * STRIDE).min(len);
+    while j < end && value(j) <= target {
+        j += 1;
+    }
+    j
 }
 
 /// The window's directions from one shading point, in `(α, β)`: a box, and the table's
@@ -210,12 +286,19 @@ impl GuidedTable {
             }
         }
         GuidedTable {
+            summed_index: SearchIndex::new(&summed, mb, ma),
+            column_index: SearchIndex::new(&column_cdf, na, mb),
             alpha,
             beta,
-            weights,
             summed,
             column_cdf,
         }
+    }
+
+    /// `T` on cell `(c, r)`: the column's running integral over the cell, over its width.
+    fn weight(&self, c: usize, r: usize) -> f64 {
+        let at = c * (self.beta.cells() + 1) + r;
+        (self.column_cdf[at + 1] - self.column_cdf[at]) / self.beta.width(r)
     }
 
     /// Cells per axis `(α, β)`.
@@ -225,7 +308,7 @@ impl GuidedTable {
 
     /// `T` at `(α, β)`.
     pub fn density(&self, alpha: f64, beta: f64) -> f64 {
-        self.weights[self.alpha.cell(alpha) * self.beta.cells() + self.beta.cell(beta)]
+        self.weight(self.alpha.cell(alpha), self.beta.cell(beta))
     }
 
     /// The integral of `T` over `[−π/2, α] × [−π/2, β]`: bilinear in the summed-area table,
@@ -256,35 +339,40 @@ impl GuidedTable {
     pub fn sample(&self, b: &GuidedBox, u: [f64; 2]) -> Option<(f64, f64, f64)> {
         let (alpha, c) = self.sample_alpha(b, u[0])?;
         let (beta, r) = self.sample_beta(c, b.beta, u[1])?;
-        Some((alpha, beta, self.weights[c * self.beta.cells() + r]))
+        Some((alpha, beta, self.weight(c, r)))
     }
 
     /// Inverts the marginal CDF in `α` over the box's `β` range (piecewise linear, with a
-    /// node at each column edge): a binary search along the summed-area table's rows at
-    /// `β0` and `β1`, then a linear step within the column. The angle and its column.
+    /// node at each column edge): a search along the summed-area table's rows at `β0` and
+    /// `β1` ([`first_above`]), then a linear step within the column. The angle and its column.
     fn sample_alpha(&self, b: &GuidedBox, u: f64) -> Option<(f64, usize)> {
         let m = self.alpha.cells() + 1;
         let (r0, g0) = self.beta.locate(b.beta[0]);
         let (r1, g1) = self.beta.locate(b.beta[1]);
-        let row = |r: usize| &self.summed[r * m..(r + 1) * m];
-        let (s0, s0n, s1, s1n) = (row(r0), row(r0 + 1), row(r1), row(r1 + 1));
-        // M at column edge c: the integral over α < edge c, β0 < β < β1.
-        let marginal = |c: usize| (s1[c] + g1 * (s1n[c] - s1[c])) - (s0[c] + g0 * (s0n[c] - s0[c]));
+        // M at column edge c from the rows around β0 and β1: the integral over α < edge c,
+        // β0 < β < β1; the index's rows give it at every STRIDE-th and STRIDE²-th edge.
+        let marginal_in = |rows: [&[f64]; 4], c: usize| {
+            let [s0, s0n, s1, s1n] = rows;
+            (s1[c] + g1 * (s1n[c] - s1[c])) - (s0[c] + g0 * (s0n[c] - s0[c]))
+        };
+        let around = [r0, r0 + 1, r1, r1 + 1];
+        let rows = around.map(|r| &self.summed[r * m..(r + 1) * m]);
+        let fine = around.map(|r| self.summed_index.fine(r));
+        let coarse = around.map(|r| self.summed_index.coarse(r));
+        let marginal = |c: usize| marginal_in(rows, c);
         let (c0, f0) = self.alpha.locate(b.alpha[0]);
         let c1 = self.alpha.cell(b.alpha[1]);
         let at_start = marginal(c0) + f0 * (marginal(c0 + 1) - marginal(c0));
         let target = at_start + u * b.integral;
-        // The first column whose upper edge's M passes the target (the last one is c1).
-        let (mut lo, mut hi) = (c0, c1);
-        while lo < hi {
-            let mid = (lo + hi) / 2;
-            if marginal(mid + 1) > target {
-                hi = mid;
-            } else {
-                lo = mid + 1;
-            }
-        }
-        let c = lo;
+        // The first column in [c0, c1] whose upper edge's M passes the target (else c1).
+        let above = first_above(
+            target,
+            m,
+            |k| marginal_in(coarse, k),
+            |k| marginal_in(fine, k),
+            marginal,
+        );
+        let c = above.max(c0 + 1).min(c1 + 1) - 1;
         let (e0, width) = (self.alpha.edges[c], self.alpha.width(c));
         let (m0, m1) = (marginal(c), marginal(c + 1));
         let density = (m1 - m0) / width;
@@ -298,20 +386,22 @@ impl GuidedTable {
 
     /// Inverts column `c`'s CDF in `β` within `[β0, β1]`: the angle and its row.
     fn sample_beta(&self, c: usize, beta: [f64; 2], u: f64) -> Option<(f64, usize)> {
-        let nb = self.beta.cells();
-        let cdf = &self.column_cdf[c * (nb + 1)..(c + 1) * (nb + 1)];
-        let t = &self.weights[c * nb..(c + 1) * nb];
+        let mb = self.beta.cells() + 1;
+        let cdf = &self.column_cdf[c * mb..(c + 1) * mb];
         let (r0, g0) = self.beta.locate(beta[0]);
         let (r1, g1) = self.beta.locate(beta[1]);
         let f0 = cdf[r0] + g0 * (cdf[r0 + 1] - cdf[r0]);
         let f1 = cdf[r1] + g1 * (cdf[r1 + 1] - cdf[r1]);
         let target = f0 + u * (f1 - f0);
-        // The first row whose upper edge's running integral passes the target.
-        let r = (r0 + cdf[r0 + 1..=r1 + 1].partition_point(|&f| f <= target)).min(r1);
+        // The first row in [r0, r1] whose upper edge's running integral passes the target
+        // (else r1).
+        let (fine, coarse) = (self.column_index.fine(c), self.column_index.coarse(c));
+        let above = first_above(target, mb, |k| coarse[k], |k| fine[k], |j| cdf[j]);
+        let r = above.max(r0 + 1).min(r1 + 1) - 1;
         let e0 = self.beta.edges[r];
         let start = beta[0].max(e0);
         let end = beta[1].min(self.beta.edges[r + 1]).max(start);
-        let weight = t[r];
+        let weight = self.weight(c, r);
         (weight > 0.0).then(|| ((e0 + (target - cdf[r]) / weight).clamp(start, end), r))
     }
 }
@@ -421,7 +511,7 @@ mod tests {
                 for r in 0..nb {
                     let (f0, f1) = (t.beta.edges[r], t.beta.edges[r + 1]);
                     let ob = overlap(beta[0], beta[1], f0, f1);
-                    let w = t.weights[c * nb + r];
+                    let w = t.weight(c, r);
                     sum += w * oa * ob;
                     uniform_sum += w
                         * (oa / (e1 - e0)).min(1.0)
@@ -438,6 +528,41 @@ mod tests {
             wrong_widths_detected,
             "uniform widths were never told apart"
         );
+    }
+
+    /// The three-scan search finds what a binary search over the whole sequence finds, for
+    /// every target between and beyond the values, sequence lengths around the strides, and
+    /// runs of equal values. Negative case: an index of other values (the sequence halved)
+    /// in front of the same last scan gives other answers.
+    #[test]
+    fn the_indexed_search_finds_the_first_value_above() {
+        let mut rng = Rng::new(9, 0);
+        let mut wrong_index_differs = false;
+        for len in [1, 2, 7, 8, 9, 63, 64, 65, 200, 598] {
+            // Nondecreasing, with runs of equal values.
+            let mut values = Vec::with_capacity(len);
+            let mut v = 0.0;
+            for _ in 0..len {
+                if rng.uniform() < 0.7 {
+                    v += f64::from(rng.uniform());
+                }
+                values.push(v);
+            }
+            let index = SearchIndex::new(&values, 1, len);
+            let (fine, coarse) = (index.fine(0), index.coarse(0));
+            let halved: Vec<f64> = values.iter().map(|x| 0.5 * x).collect();
+            let wrong = SearchIndex::new(&halved, 1, len);
+            for t in 0..200 {
+                let target = -0.5 + (v + 1.0) * t as f64 / 199.0;
+                let expected = values.partition_point(|&x| x <= target);
+                let found = first_above(target, len, |k| coarse[k], |k| fine[k], |j| values[j]);
+                assert_eq!(found, expected, "len {len}, target {target}");
+                let (wf, wc) = (wrong.fine(0), wrong.coarse(0));
+                wrong_index_differs |=
+                    first_above(target, len, |k| wc[k], |k| wf[k], |j| values[j]) != expected;
+            }
+        }
+        assert!(wrong_index_differs, "a wrong index was never told apart");
     }
 
     /// Drawn angles stay in the box, and the reported `T` is the table's at the drawn angles.
