@@ -19,6 +19,8 @@ const MAX_REFINED: usize = 24;
 const REFINE_SHARE: f64 = 1e-3;
 /// Supersamples per side of a base cell.
 const SUPERSAMPLES: usize = 3;
+/// Intervals per side of the grid on which a fine cell at a jump takes its largest value.
+const EDGE_SAMPLES: usize = 4;
 
 const BASE_WIDTH: f64 = PI / GUIDED_BASE_CELLS as f64;
 
@@ -192,7 +194,8 @@ pub fn jacobian(a: f64, b: f64) -> f64 {
 impl GuidedTable {
     /// `T` for `weight(direction(α, β)) · J(α, β)`, `weight` the environment's sampling weight:
     /// means of supersamples over 0.7° cells; the base intervals whose cells' supersamples
-    /// spread most (a sun's edge) are refined and their fine cells sampled at their centres.
+    /// spread most (a sun's edge) are refined; a fine cell takes the largest value on a grid
+    /// over it where both of its axes are refined, else its supersamples along the whole axis.
     /// Floored at a millionth of the mean so that every direction through the window can be
     /// drawn.
     pub fn new(direction: impl Fn(f64, f64) -> Vec3, weight: impl Fn(Vec3) -> f32) -> Self {
@@ -244,8 +247,24 @@ impl GuidedTable {
                 weights[c * nb + r] = if whole_c && whole_r {
                     let (bc, br) = (alpha.base_of(c), beta.base_of(r));
                     base[bc * n + br]
+                } else if !whole_c && !whole_r {
+                    // A fine cell where both axes jump (a sun's edge): the largest value on a
+                    // 5 × 5 grid over the cell, its corners and sides included. A sun that
+                    // the environment's pixels put over any part of the cell then sets its
+                    // value (each pixel spans dozens of fine cells, so a part of one in a cell
+                    // holds a corner or a stretch of side): a centre sample that missed it
+                    // drew those sun directions at the sky's density, with weights a thousand
+                    // times the mean. The cost is the cell's sky part drawn at the sun's
+                    // density (zeros, half a fine cell wide around the sun on average).
+                    let (a0, wa) = (alpha.edges[c], alpha.width(c));
+                    let (b0, wb) = (beta.edges[r], beta.width(r));
+                    let grid = (0..=EDGE_SAMPLES).map(|i| i as f64 / EDGE_SAMPLES as f64);
+                    grid.clone()
+                        .flat_map(|i| grid.clone().map(move |j| (i, j)))
+                        .map(|(i, j)| value(a0 + i * wa, b0 + j * wb))
+                        .fold(0.0, f64::max)
                 } else {
-                    // A refined cell: its supersamples along the axes it was not refined in.
+                    // A cell refined along one axis only: its supersamples along the other.
                     let along = |axis: &Axis, i: usize, whole: bool| -> Vec<f64> {
                         if whole {
                             offsets.iter().map(|o| axis.edges[i] + o).collect()
@@ -563,6 +582,51 @@ mod tests {
             }
         }
         assert!(wrong_index_differs, "a wrong index was never told apart");
+    }
+
+    /// No direction in the sun lies in a cell valued below the sun (such a cell would draw it
+    /// at the sky's density, with a weight a thousand times the mean): for random directions
+    /// around the sun, `T` of their cell is at least their own value (1 % slack for the
+    /// Jacobian's change across a cell). Negative case: the value at the cell's centre, what
+    /// a fine cell took before, is the sky's for some of them.
+    #[test]
+    fn no_sun_direction_lies_in_a_cell_valued_as_sky() {
+        let t = table(1000.0);
+        let sun = Vec3::new(0.2, 0.1, 1.0).normalize();
+        let value = |a: f64, b: f64| {
+            let w = Vec3::new(a.tan() as f32, b.tan() as f32, 1.0).normalize();
+            let l = if w.dot(sun) > 0.045f32.cos() {
+                1000.0
+            } else {
+                1.0
+            };
+            l * jacobian(a.tan(), b.tan())
+        };
+        let (sun_alpha, sun_beta) = (0.2f64.atan(), 0.1f64.atan());
+        let mut rng = Rng::new(8, 0);
+        let (mut in_sun, mut centre_misses) = (0, 0);
+        for _ in 0..200_000 {
+            let a = sun_alpha + 0.1 * (f64::from(rng.uniform()) - 0.5);
+            let b = sun_beta + 0.1 * (f64::from(rng.uniform()) - 0.5);
+            let v = value(a, b);
+            if v < 100.0 {
+                continue;
+            }
+            in_sun += 1;
+            assert!(
+                t.density(a, b) >= 0.99 * v,
+                "({a}, {b}): T {} < {v}",
+                t.density(a, b)
+            );
+            let (c, r) = (t.alpha.cell(a), t.beta.cell(b));
+            let centre = value(
+                0.5 * (t.alpha.edges[c] + t.alpha.edges[c + 1]),
+                0.5 * (t.beta.edges[r] + t.beta.edges[r + 1]),
+            );
+            centre_misses += usize::from(centre < 0.5 * v);
+        }
+        assert!(in_sun > 10_000, "{in_sun} directions in the sun");
+        assert!(centre_misses > 0, "no cell centre missed the sun");
     }
 
     /// Drawn angles stay in the box, and the reported `T` is the table's at the drawn angles.
