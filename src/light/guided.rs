@@ -5,6 +5,7 @@
 //! exact integrals that draw from it within a box.
 
 use glam::Vec3;
+use rayon::prelude::*;
 use std::f64::consts::{FRAC_PI_2, PI};
 
 /// Base intervals per axis (0.7° each, as the built-in sky's pixels).
@@ -198,7 +199,11 @@ impl GuidedTable {
     /// over it where both of its axes are refined, else its supersamples along the whole axis.
     /// Floored at a millionth of the mean so that every direction through the window can be
     /// drawn.
-    pub fn new(direction: impl Fn(f64, f64) -> Vec3, weight: impl Fn(Vec3) -> f32) -> Self {
+    /// Columns are filled in parallel (rayon): the table is rebuilt when a window moves.
+    pub fn new(
+        direction: impl Fn(f64, f64) -> Vec3 + Sync,
+        weight: impl Fn(Vec3) -> f32 + Sync,
+    ) -> Self {
         let n = GUIDED_BASE_CELLS;
         let value = |alpha: f64, beta: f64| {
             f64::from(weight(direction(alpha, beta))) * jacobian(alpha.tan(), beta.tan())
@@ -208,11 +213,12 @@ impl GuidedTable {
         // the cell's mean Jacobian and area (the Jacobian is smooth: only jumps count).
         let k = SUPERSAMPLES;
         let mut base = vec![0.0; n * n];
-        let (mut spread_alpha, mut spread_beta) = (vec![0.0; n], vec![0.0; n]);
+        let mut misplaced = vec![0.0; n * n];
         let offsets: Vec<f64> = (0..k)
             .map(|i| (i as f64 + 0.5) / k as f64 * BASE_WIDTH)
             .collect();
-        for c in 0..n {
+        let columns = base.par_chunks_mut(n).zip(misplaced.par_chunks_mut(n));
+        columns.enumerate().for_each(|(c, (base, misplaced))| {
             let a0 = -FRAC_PI_2 + c as f64 * BASE_WIDTH;
             for r in 0..n {
                 let b0 = -FRAC_PI_2 + r as f64 * BASE_WIDTH;
@@ -229,59 +235,65 @@ impl GuidedTable {
                     }
                 }
                 let samples = (k * k) as f64;
-                base[c * n + r] = sum / samples;
-                let misplaced = (hi - lo) * sum_j / samples * BASE_WIDTH * BASE_WIDTH;
-                spread_alpha[c] += misplaced;
-                spread_beta[r] += misplaced;
+                base[r] = sum / samples;
+                misplaced[r] = (hi - lo) * sum_j / samples * BASE_WIDTH * BASE_WIDTH;
             }
+        });
+        let (mut spread_alpha, mut spread_beta) = (vec![0.0; n], vec![0.0; n]);
+        for (i, m) in misplaced.iter().enumerate() {
+            spread_alpha[i / n] += m;
+            spread_beta[i % n] += m;
         }
         let total: f64 = base.iter().sum::<f64>() * BASE_WIDTH * BASE_WIDTH;
         let alpha = Axis::new(&refined(&spread_alpha, total));
         let beta = Axis::new(&refined(&spread_beta, total));
         let (na, nb) = (alpha.cells(), beta.cells());
         let mut weights = vec![0.0; na * nb];
-        for c in 0..na {
-            let whole_c = alpha.width(c) > 0.5 * BASE_WIDTH;
-            for r in 0..nb {
-                let whole_r = beta.width(r) > 0.5 * BASE_WIDTH;
-                weights[c * nb + r] = if whole_c && whole_r {
-                    let (bc, br) = (alpha.base_of(c), beta.base_of(r));
-                    base[bc * n + br]
-                } else if !whole_c && !whole_r {
-                    // A fine cell where both axes jump (a sun's edge): the largest value on a
-                    // 5 × 5 grid over the cell, its corners and sides included. A sun that
-                    // the environment's pixels put over any part of the cell then sets its
-                    // value (each pixel spans dozens of fine cells, so a part of one in a cell
-                    // holds a corner or a stretch of side): a centre sample that missed it
-                    // drew those sun directions at the sky's density, with weights a thousand
-                    // times the mean. The cost is the cell's sky part drawn at the sun's
-                    // density (zeros, half a fine cell wide around the sun on average).
-                    let (a0, wa) = (alpha.edges[c], alpha.width(c));
-                    let (b0, wb) = (beta.edges[r], beta.width(r));
-                    let grid = (0..=EDGE_SAMPLES).map(|i| i as f64 / EDGE_SAMPLES as f64);
-                    grid.clone()
-                        .flat_map(|i| grid.clone().map(move |j| (i, j)))
-                        .map(|(i, j)| value(a0 + i * wa, b0 + j * wb))
-                        .fold(0.0, f64::max)
-                } else {
-                    // A cell refined along one axis only: its supersamples along the other.
-                    let along = |axis: &Axis, i: usize, whole: bool| -> Vec<f64> {
-                        if whole {
-                            offsets.iter().map(|o| axis.edges[i] + o).collect()
-                        } else {
-                            vec![0.5 * (axis.edges[i] + axis.edges[i + 1])]
-                        }
+        weights
+            .par_chunks_mut(nb)
+            .enumerate()
+            .for_each(|(c, column)| {
+                let whole_c = alpha.width(c) > 0.5 * BASE_WIDTH;
+                for (r, weight) in column.iter_mut().enumerate() {
+                    let whole_r = beta.width(r) > 0.5 * BASE_WIDTH;
+                    *weight = if whole_c && whole_r {
+                        let (bc, br) = (alpha.base_of(c), beta.base_of(r));
+                        base[bc * n + br]
+                    } else if !whole_c && !whole_r {
+                        // A fine cell where both axes jump (a sun's edge): the largest value on a
+                        // 5 × 5 grid over the cell, its corners and sides included. A sun that
+                        // the environment's pixels put over any part of the cell then sets its
+                        // value (each pixel spans dozens of fine cells, so a part of one in a cell
+                        // holds a corner or a stretch of side): a centre sample that missed it
+                        // drew those sun directions at the sky's density, with weights a thousand
+                        // times the mean. The cost is the cell's sky part drawn at the sun's
+                        // density (zeros, half a fine cell wide around the sun on average).
+                        let (a0, wa) = (alpha.edges[c], alpha.width(c));
+                        let (b0, wb) = (beta.edges[r], beta.width(r));
+                        let grid = (0..=EDGE_SAMPLES).map(|i| i as f64 / EDGE_SAMPLES as f64);
+                        grid.clone()
+                            .flat_map(|i| grid.clone().map(move |j| (i, j)))
+                            .map(|(i, j)| value(a0 + i * wa, b0 + j * wb))
+                            .fold(0.0, f64::max)
+                    } else {
+                        // A cell refined along one axis only: its supersamples along the other.
+                        let along = |axis: &Axis, i: usize, whole: bool| -> Vec<f64> {
+                            if whole {
+                                offsets.iter().map(|o| axis.edges[i] + o).collect()
+                            } else {
+                                vec![0.5 * (axis.edges[i] + axis.edges[i + 1])]
+                            }
+                        };
+                        let (pa, pb) = (along(&alpha, c, whole_c), along(&beta, r, whole_r));
+                        let sum: f64 = pa
+                            .iter()
+                            .flat_map(|&a| pb.iter().map(move |&b| (a, b)))
+                            .map(|(a, b)| value(a, b))
+                            .sum();
+                        sum / (pa.len() * pb.len()) as f64
                     };
-                    let (pa, pb) = (along(&alpha, c, whole_c), along(&beta, r, whole_r));
-                    let sum: f64 = pa
-                        .iter()
-                        .flat_map(|&a| pb.iter().map(move |&b| (a, b)))
-                        .map(|(a, b)| value(a, b))
-                        .sum();
-                    sum / (pa.len() * pb.len()) as f64
-                };
-            }
-        }
+                }
+            });
         let mean = total / (PI * PI);
         let floor = if mean > 0.0 && mean.is_finite() {
             1e-6 * mean
