@@ -473,6 +473,7 @@ fn clip_by_plane_into(vertices: &[Vec3], plane: Plane, out: &mut Verts) {
 }
 
 /// Sutherland–Hodgman given each vertex's signed distance to the plane (each computed once).
+#[inline(always)]
 fn clip_by_distances_into(vertices: &[Vec3], distances: &[f32], out: &mut Verts) {
     out.clear();
     for ((a, b), (da, db)) in super::cyclic_pairs(vertices).zip(super::cyclic_pairs(distances)) {
@@ -486,6 +487,7 @@ fn clip_by_distances_into(vertices: &[Vec3], distances: &[f32], out: &mut Verts)
     }
 }
 
+#[inline(always)]
 fn push(out: &mut Verts, p: Vec3) {
     // Capacity covers every clip this crate performs; a full buffer would mean a logic error.
     debug_assert!(!out.is_full());
@@ -500,6 +502,7 @@ pub fn clip_convex(subject: &[Vec3], clip: &ConvexPolygon) -> Verts {
 }
 
 /// [`clip_convex`] into `out` (a clip per shading point: no vertex array is moved).
+#[inline(always)]
 pub fn clip_convex_into(subject: &[Vec3], clip: &ConvexPolygon, out: &mut Verts) {
     out.clear();
     out.extend(subject.iter().copied());
@@ -541,6 +544,7 @@ pub fn clip_convex_into(subject: &[Vec3], clip: &ConvexPolygon, out: &mut Verts)
 /// the first: a clip repeats, a few ulps apart, a vertex that lies on a clipping plane, and the
 /// edge between the copies has a direction made by rounding. What is kept is a subsequence of
 /// the vertices, so a convex polygon stays convex.
+#[inline(always)]
 pub fn merge_close(vertices: &mut Verts, tol: f32) {
     let kept = merge_close_by(vertices, |a, b| a.distance_squared(b) <= tol * tol);
     vertices.truncate(kept);
@@ -548,6 +552,7 @@ pub fn merge_close(vertices: &mut Verts, tol: f32) {
 
 /// [`merge_close`] for any vertex type and closeness: moves the kept vertices to the front of
 /// `vertices` and returns how many there are.
+#[inline(always)]
 pub fn merge_close_by<T: Copy>(vertices: &mut [T], close: impl Fn(T, T) -> bool) -> usize {
     let mut kept = 0;
     for i in 0..vertices.len() {

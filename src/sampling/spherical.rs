@@ -50,6 +50,7 @@ fn solid_angle_f64(a: DVec3, b: DVec3, c: DVec3) -> f64 {
 /// Van Oosterom–Strackee as a complex number `z = (1 + a·b + b·c + c·a) + i·|a·(b×c)|`, whose
 /// argument is half the solid angle: a fan's half-angles add, so its cumulative solid angles
 /// are products of these, and one `atan2` of the last product gives the polygon's.
+#[inline(always)]
 fn half_solid_angle_phasor(a: DVec3, b: DVec3, c: DVec3) -> DVec2 {
     DVec2::new(
         1.0 + a.dot(b) + b.dot(c) + c.dot(a),
@@ -58,6 +59,7 @@ fn half_solid_angle_phasor(a: DVec3, b: DVec3, c: DVec3) -> DVec2 {
 }
 
 /// The product of two complex numbers `(re, im)`: their arguments add.
+#[inline(always)]
 fn complex_mul(p: DVec2, q: DVec2) -> DVec2 {
     DVec2::new(p.x * q.x - p.y * q.y, p.x * q.y + p.y * q.x)
 }
@@ -87,6 +89,7 @@ pub fn sample_spherical_triangle(a: Vec3, b: Vec3, c: Vec3, u: Vec2) -> Option<V
 /// Oosterom–Strackee formula instead (same map), with every quantity formed from vertex
 /// differences, and without trigonometry: the half-angle `s/2` of the arc `a → c'` is kept as
 /// the vector `(cos, sin)` it is the argument of.
+#[inline(always)]
 pub fn sample_spherical_triangle_part(
     a: Vec3,
     b: Vec3,
@@ -169,6 +172,7 @@ pub fn invert_spherical_triangle_sample(a: Vec3, b: Vec3, c: Vec3, w: Vec3) -> O
 /// The point of the convex polygon `vertices` (relative to x, wound so that `v_i × v_{i+1}`
 /// points inside) nearest x, given the foot of x on its plane and those edge-plane normals
 /// `m_i = v_i × v_{i+1}`.
+#[inline(always)]
 fn nearest_point(vertices: &[DVec3], edge_normals: &[DVec3], foot: DVec3) -> DVec3 {
     // Outside, the nearest point is on an edge that has the foot on its outer side (at a
     // vertex, on one of its two edges): only those are searched.
@@ -253,6 +257,7 @@ impl SphericalPolygon {
     /// [`Self::new`] in place (a polygon is over a kilobyte: a shading point builds it where it
     /// is kept rather than moving it there). Returns false, leaving the polygon empty, where
     /// `new` returns `None`.
+    #[inline(always)]
     pub fn set(&mut self, x: Vec3, vertices: &[Vec3]) -> bool {
         self.points.clear();
         self.edge_normals.clear();
@@ -373,17 +378,20 @@ impl SphericalPolygon {
     }
 
     /// The solid angle Ω the polygon subtends from the origin (sr).
+    #[inline(always)]
     pub fn solid_angle(&self) -> f32 {
         self.solid_angle
     }
 
     /// Whether the polygon is too small to sample by solid angle (see [`SMALL_SOLID_ANGLE`]);
     /// depends on the origin only, so [`Self::sample`] and [`Self::pdf`] always agree.
+    #[inline(always)]
     pub fn is_area_sampled(&self) -> bool {
         self.solid_angle < SMALL_SOLID_ANGLE
     }
 
     /// A unit direction `wi` through the polygon and its pdf in solid angle.
+    #[inline(always)]
     pub fn sample(&self, u: Vec2) -> Option<(Vec3, f32)> {
         if self.is_area_sampled() {
             let wi = sample_polygon_area(&self.points, u).try_normalize()?;
@@ -398,6 +406,7 @@ impl SphericalPolygon {
 
     /// The pdf in solid angle of [`Self::sample`] for the unit direction `wi`: 0 unless the ray
     /// `origin + t·wi`, `t > 0`, passes through the polygon (boundary included).
+    #[inline(always)]
     pub fn pdf(&self, wi: Vec3) -> f32 {
         if !self.contains(wi) {
             0.0
@@ -409,6 +418,7 @@ impl SphericalPolygon {
     }
 
     /// Whether the unit direction `wi` is inside the polygon's cone, up to [`EDGE_TOLERANCE`].
+    #[inline(always)]
     fn contains(&self, wi: Vec3) -> bool {
         // The edge planes alone bound the cone; the first test rejects the opposite hemisphere
         // early and keeps `area_pdf` away from grazing directions.
@@ -421,6 +431,7 @@ impl SphericalPolygon {
 
     /// Area sampling's pdf in solid angle, `d² / (A·|cos θ|)`: here `d = h / |cos θ|` with `h`
     /// the origin's distance to the plane, so sample and pdf use the same expression.
+    #[inline(always)]
     fn area_pdf(&self, wi: Vec3) -> f32 {
         let cos_theta = self.plane.n.dot(wi).abs();
         self.height * self.height / (self.area * cos_theta * cos_theta * cos_theta)
@@ -431,6 +442,7 @@ impl SphericalPolygon {
     /// rescales `u` into the triangle's bin of the cumulative solid angles (so stratification
     /// carries over to the triangle), `A' = 2·(u·Ω/2 − Φ_{i−1})`, done on the complex numbers
     /// of the fan: one `sin_cos` per sample, no angle per triangle.
+    #[inline(always)]
     fn pick_fan_triangle(&self, u: f32) -> Option<(usize, f32, f32)> {
         let target = f64::from(u) * self.half_solid_angle;
         let (sin_t, cos_t) = target.sin_cos();
