@@ -233,7 +233,7 @@ impl LightSampler {
         x: Vec3,
         ctx: &mut LightContext,
     ) {
-        self.fill_context_classified(scene, light, x, ctx, &|portal, x| portal.planes.classify(x));
+        self.fill_context_classified(scene, light, x, ctx, &classify_by_planes);
     }
 
     /// [`Self::fill_context`] with the regions given by `classify`. Any classifier keeps the
@@ -451,6 +451,13 @@ impl LightSampler {
         let light = &scene.lights()[light];
         hit.map_or(0.0, |(y, d)| light.pdf_solid_angle(d, y.n.dot(wi)))
     }
+}
+
+/// The classifier of [`LightSampler::fill_context`]: the portal's precomputed planes. A function
+/// rather than a closure, so that it is inlined into the renderer's instruction-set variants.
+#[inline(always)]
+fn classify_by_planes(portal: &Portal, x: Vec3) -> Region {
+    portal.planes.classify(x)
 }
 
 /// `p_{s_j}(wi | x)`: one portal term's technique density (`p_light` is `p_L(wi)`).
