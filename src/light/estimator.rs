@@ -514,11 +514,11 @@ pub fn projected_light_into(portal: &Portal, x: Vec3, q: &mut Verts) {
         return;
     }
     let mut projected = Verts::new();
-    projected.extend(portal.planes.light_behind_portal().iter().map(|&v| {
+    for &v in portal.planes.light_behind_portal() {
         // x is in front and v on or behind the plane, so the segment crosses it once.
         let dv = plane.signed_distance(v);
-        x + (v - x) * (dx / (dx - dv))
-    }));
+        let _ = projected.try_push(x + (v - x) * (dx / (dx - dv)));
+    }
     // A solid's vertices project to a point set: its outline is their convex hull.
     if portal.planes.is_hull() {
         projected = convex_hull_in_plane(&projected, plane.n);
@@ -530,7 +530,10 @@ pub fn projected_light_into(portal: &Portal, x: Vec3, q: &mut Verts) {
     // spherical polygon's inside test uses, would cut through Q. The copies differ by the
     // clip's rounding, a few ulps of the coordinates; edges as short as 1e-5 of the scene
     // (the light clip's tolerance) carry no shape worth keeping either.
-    let max_coordinate = q.iter().map(|v| v.abs().max_element()).fold(0.0, f32::max);
+    let mut max_coordinate = 0.0f32;
+    for v in q.iter() {
+        max_coordinate = max_coordinate.max(v.abs().max_element());
+    }
     let tol = MERGE_TOLERANCE * portal.planes.scale() + 64.0 * f32::EPSILON * max_coordinate;
     merge_close(q, tol);
 }

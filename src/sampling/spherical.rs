@@ -182,10 +182,12 @@ fn nearest_point(vertices: &[DVec3], edge_normals: &[DVec3], foot: DVec3) -> DVe
     // vertex, on one of its two edges): only those are searched.
     let mut nearest = foot;
     let mut nearest_distance = f64::INFINITY;
-    for ((a, b), m) in super::cyclic_pairs(vertices).zip(edge_normals) {
-        if foot.dot(*m) >= 0.0 {
+    let n = vertices.len().min(edge_normals.len());
+    for i in 0..n {
+        if foot.dot(edge_normals[i]) >= 0.0 {
             continue;
         }
+        let (a, b) = (vertices[i], vertices[if i + 1 == n { 0 } else { i + 1 }]);
         let e = b - a;
         let p = a + (-a.dot(e) / e.length_squared()).clamp(0.0, 1.0) * e;
         let distance = p.length_squared();
@@ -275,30 +277,41 @@ impl SphericalPolygon {
         self.half_solid_angle = 0.0;
         self.solid_angle = 0.0;
         let n = vertices.len();
-        if !(3..=MAX_CLIP_VERTICES).contains(&n)
-            || !x.is_finite()
-            || vertices.iter().any(|v| !v.is_finite())
-        {
+        if !(3..=MAX_CLIP_VERTICES).contains(&n) || !x.is_finite() {
             return false;
         }
         // Set-up runs in f64, where differences of f32 positions are exact: a small polygon far
         // from `x` or from the world origin keeps its shape, and solid angles near 2π keep their
-        // digits.
+        // digits. (Plain index loops: iterator adapters were left out of line here, compiled
+        // without the renderer's instruction-set features.)
         let xd = x.as_dvec3();
         let mut offsets: ArrayVec<DVec3, MAX_CLIP_VERTICES> = ArrayVec::new();
-        offsets.extend(vertices.iter().map(|v| v.as_dvec3() - xd));
+        let mut offset_sum = DVec3::ZERO;
+        for v in vertices {
+            if !v.is_finite() {
+                return false;
+            }
+            let r = v.as_dvec3() - xd;
+            offset_sum += r;
+            offsets.push(r);
+        }
         // Edge-plane normals `r_i × (r_{i+1} − r_i)` (= r_i × r_{i+1}, without its cancellation
         // for a small polygon far away). Their sum is twice the vector area (Newell's, about
         // x), so they give the polygon's normal and area too.
         let mut normals: ArrayVec<DVec3, MAX_CLIP_VERTICES> = ArrayVec::new();
-        normals.extend(super::cyclic_pairs(&offsets).map(|(r, r_next)| r.cross(r_next - r)));
-        let twice_area: DVec3 = normals.iter().copied().sum();
+        let mut twice_area = DVec3::ZERO;
+        for i in 0..n {
+            let (r, r_next) = (offsets[i], offsets[if i + 1 == n { 0 } else { i + 1 }]);
+            let m = r.cross(r_next - r);
+            twice_area += m;
+            normals.push(m);
+        }
         let twice_area_length = twice_area.length();
         if !(twice_area_length > 0.0 && twice_area_length.is_finite()) {
             return false;
         }
         let winding_normal = twice_area / twice_area_length;
-        let mean_offset = offsets.iter().copied().sum::<DVec3>() / n as f64;
+        let mean_offset = offset_sum / n as f64;
         // Orient the polygon so that its winding normal points away from x: then `r_i × r_{i+1}`
         // points inside for every edge. Reversed, the edge `(r_{i+1}, r_i)` has normal `−m_i`,
         // and the reversed edges come in the order n−2, …, 0, n−1.
@@ -341,7 +354,9 @@ impl SphericalPolygon {
         // the accurate normal: it gives the fan triangle's triple product `apex · m̂_i` and the
         // edge's plane for the inside test, without a second square root per vertex.
         let mut apex_dot: ArrayVec<f64, MAX_CLIP_VERTICES> = ArrayVec::new();
-        apex_dot.extend(unit.iter().map(|u| apex.dot(*u)));
+        for u in &unit {
+            apex_dot.push(apex.dot(*u));
+        }
         let mut cumulative = DVec2::X;
         for i in 0..n {
             let next = if i + 1 == n { 0 } else { i + 1 };
@@ -375,10 +390,13 @@ impl SphericalPolygon {
             self.edge_slack.clear();
             return false;
         }
-        if solid_angle < SMALL_SOLID_ANGLE {
-            self.points.extend(offsets.iter().map(|r| r.as_vec3()));
+        let kept = if solid_angle < SMALL_SOLID_ANGLE {
+            &offsets
         } else {
-            self.points.extend(unit.iter().map(|d| d.as_vec3()));
+            &unit
+        };
+        for r in kept {
+            self.points.push(r.as_vec3());
         }
         self.origin = x;
         self.apex = apex.as_vec3();
@@ -455,15 +473,16 @@ impl SphericalPolygon {
         // early and keeps `area_pdf` away from grazing directions.
         // `m̂ · wi >= −EDGE_TOLERANCE · |m̂|`, squared on the negative side: the edge normals
         // are not normalised.
-        self.plane.n.dot(wi) < 0.0
-            && self
-                .edge_normals
-                .iter()
-                .zip(&self.edge_slack)
-                .all(|(m, &slack)| {
-                    let d = m.dot(wi);
-                    d >= 0.0 || d * d <= slack
-                })
+        if self.plane.n.dot(wi) >= 0.0 {
+            return false;
+        }
+        for (m, &slack) in self.edge_normals.iter().zip(&self.edge_slack) {
+            let d = m.dot(wi);
+            if d < 0.0 && d * d > slack {
+                return false;
+            }
+        }
+        true
     }
 
     /// Area sampling's pdf in solid angle, `d² / (A·|cos θ|)`: here `d = h / |cos θ|` with `h`
