@@ -543,9 +543,9 @@ pub fn clip_convex_into(subject: &[Vec3], clip: &ConvexPolygon, out: &mut Verts)
         }
         let distances = &distances[..src.len()];
         if in_spare {
-            clip_by_distances_into(&spare, &distances, out);
+            clip_by_distances_into(&spare, distances, out);
         } else {
-            clip_by_distances_into(out, &distances, &mut spare);
+            clip_by_distances_into(out, distances, &mut spare);
         }
         in_spare = !in_spare;
     }
