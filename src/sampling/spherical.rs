@@ -295,16 +295,12 @@ impl SphericalPolygon {
             offset_sum += r;
             offsets.push(r);
         }
-        // Edge-plane normals `r_i × (r_{i+1} − r_i)` (= r_i × r_{i+1}, without its cancellation
-        // for a small polygon far away). Their sum is twice the vector area (Newell's, about
-        // x), so they give the polygon's normal and area too.
-        let mut normals: ArrayVec<DVec3, MAX_CLIP_VERTICES> = ArrayVec::new();
+        // The sum of `r_i × (r_{i+1} − r_i)` (= r_i × r_{i+1}, without its cancellation for a
+        // small polygon far away) is twice the vector area (Newell's, about x).
         let mut twice_area = DVec3::ZERO;
         for i in 0..n {
             let (r, r_next) = (offsets[i], offsets[if i + 1 == n { 0 } else { i + 1 }]);
-            let m = r.cross(r_next - r);
-            twice_area += m;
-            normals.push(m);
+            twice_area += r.cross(r_next - r);
         }
         let twice_area_length = twice_area.length();
         if !(twice_area_length > 0.0 && twice_area_length.is_finite()) {
@@ -312,18 +308,17 @@ impl SphericalPolygon {
         }
         let winding_normal = twice_area / twice_area_length;
         let mean_offset = offset_sum / n as f64;
-        // Orient the polygon so that its winding normal points away from x: then `r_i × r_{i+1}`
-        // points inside for every edge. Reversed, the edge `(r_{i+1}, r_i)` has normal `−m_i`,
-        // and the reversed edges come in the order n−2, …, 0, n−1.
+        // Orient the polygon so that its winding normal points away from x: then the edge-plane
+        // normals `m_i = r_i × (r_{i+1} − r_i)` point inside.
         let mut away = winding_normal;
         if away.dot(mean_offset) < 0.0 {
             away = -away;
             offsets.reverse();
-            normals.reverse();
-            normals.rotate_left(1);
-            for m in normals.iter_mut() {
-                *m = -*m;
-            }
+        }
+        let mut normals: ArrayVec<DVec3, MAX_CLIP_VERTICES> = ArrayVec::new();
+        for i in 0..n {
+            let (r, r_next) = (offsets[i], offsets[if i + 1 == n { 0 } else { i + 1 }]);
+            normals.push(r.cross(r_next - r));
         }
         // One length per vertex: the scale of the edge-on test, and the unit directions.
         let mut unit: ArrayVec<DVec3, MAX_CLIP_VERTICES> = ArrayVec::new();
@@ -358,6 +353,8 @@ impl SphericalPolygon {
             apex_dot.push(apex.dot(*u));
         }
         let mut cumulative = DVec2::X;
+        let mut phasors: ArrayVec<DVec2, MAX_CLIP_VERTICES> = ArrayVec::new();
+        let (mut smallest, mut largest) = (1.0f64, 1.0f64);
         for i in 0..n {
             let next = if i + 1 == n { 0 } else { i + 1 };
             let m = normals[i] * (inverse_length[i] * inverse_length[next]);
@@ -369,17 +366,32 @@ impl SphericalPolygon {
             if z.y > 0.0 && z.y > 0.5 * f64::from(MIN_TRIANGLE_SOLID_ANGLE) * z.x {
                 self.fan_usable |= 1 << i;
             }
+            // The products' range is checked after the loop, off its chain of multiplications
+            // (a rescale in the loop put a division into every step).
             cumulative = complex_mul(cumulative, z);
             let magnitude = cumulative.x.abs() + cumulative.y.abs();
-            if !(1e-150..=1e150).contains(&magnitude) {
-                cumulative /= magnitude;
-            }
+            smallest = smallest.min(magnitude);
+            largest = largest.max(magnitude);
+            phasors.push(z);
             self.fan.push(cumulative);
             // `m̂ · ω >= −ε |m̂|` as `d >= 0 || d² <= ε² |m̂|²` (see `contains`).
             self.edge_normals.push(m.as_vec3());
             self.edge_slack.push(
                 (f64::from(EDGE_TOLERANCE) * f64::from(EDGE_TOLERANCE) * m.length_squared()) as f32,
             );
+        }
+        if !(1e-150..=1e150).contains(&smallest) || !(1e-150..=1e150).contains(&largest) {
+            // Rare: redone with each product rescaled as it leaves the range.
+            self.fan.clear();
+            cumulative = DVec2::X;
+            for z in &phasors {
+                cumulative = complex_mul(cumulative, *z);
+                let magnitude = cumulative.x.abs() + cumulative.y.abs();
+                if !(1e-150..=1e150).contains(&magnitude) {
+                    cumulative /= magnitude;
+                }
+                self.fan.push(cumulative);
+            }
         }
         let half_solid_angle = cumulative.y.atan2(cumulative.x);
         let solid_angle = (2.0 * half_solid_angle) as f32;
