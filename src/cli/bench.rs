@@ -132,7 +132,10 @@ pub fn run(args: &BenchArgs) -> Result<()> {
 /// each tile counts. On a machine shared with other work, a tile's fastest render (about a
 /// millisecond) is rarely disturbed, where a whole render's rate moves by tens of percent.
 fn tiles(size: u32, repeats: u32) -> Result<()> {
-    anyhow::ensure!(repeats > 0 && size > 0, "--repeats and --size must be positive");
+    anyhow::ensure!(
+        repeats > 0 && size > 0,
+        "--repeats and --size must be positive"
+    );
     println!(
         "Cost of a sample on one thread, {size}x{size} px, each tile's fastest of {repeats} renders"
     );
@@ -154,15 +157,7 @@ fn tiles(size: u32, repeats: u32) -> Result<()> {
             );
             let mut stats = Stats::default();
             // Warm-up (the BSDF's albedo table is built on first use).
-            std::hint::black_box(render_tile(
-                &integrator,
-                bvh,
-                &rays,
-                grid,
-                0,
-                0,
-                &mut stats,
-            ));
+            std::hint::black_box(render_tile(&integrator, bvh, &rays, grid, 0, 0, &mut stats));
             let mut fastest = vec![Duration::MAX; grid.count() as usize];
             for _ in 0..repeats {
                 for (tile, best) in (0..grid.count()).zip(fastest.iter_mut()) {
