@@ -223,11 +223,11 @@ fn projection_of_a_bulb_samples_its_own_density() {
     let mut tested = 0;
     for &x in &points {
         let ctx = sampler.context(&scene, 0, x);
-        let Some(term) = ctx.terms.first() else {
+        let Some(term) = ctx.terms().first() else {
             continue;
         };
         assert_eq!(term.technique, Technique::Projection);
-        let q = term.projection.as_ref().unwrap();
+        let q = term.projection().unwrap();
         let mut rng = Rng::new(5, 6);
         for _ in 0..5000 {
             let Some((w, pdf)) = q.sample(rng.uniform2()) else {

@@ -75,7 +75,7 @@ impl Cone {
 /// them holds the pdf's support and no more, so that its cells resolve the pdf.
 fn support_points(scene: &Scene, ctx: &LightContext) -> Vec<Vec3> {
     let mut points: Vec<Vec3> = light_points(scene, ctx.light);
-    for t in &ctx.terms {
+    for t in ctx.terms() {
         points.extend(scene.portals[t.portal].polygon.vertices());
     }
     points
@@ -100,7 +100,7 @@ fn q(sampler: &LightSampler, scene: &Scene, ctx: &LightContext, w: Vec3) -> f32 
 /// polygon: see where it is used.
 fn light_technique_only_on_a_mesh(scene: &Scene, ctx: &LightContext) -> bool {
     scene.geometry.lights[ctx.light].polygon.is_none()
-        && ctx.terms.iter().all(|t| t.technique == Technique::Light)
+        && ctx.terms().iter().all(|t| t.technique == Technique::Light)
 }
 
 /// One test point: a light of a scene and a point in front of some of its portals, labelled
@@ -275,7 +275,7 @@ fn mixture_pdf_integrates_to_covered_fraction() {
                 })
                 .collect();
             let (integral, se) = common::mean_and_se(&values);
-            let expected = if ctx.uses_portals && ctx.terms.is_empty() {
+            let expected = if ctx.uses_portals && ctx.terms().is_empty() {
                 ctx.alpha as f64
             } else {
                 1.0
@@ -316,7 +316,7 @@ fn sampled_pdf_equals_evaluated_pdf() {
                 let evaluated: Vec<f32> = match s.technique {
                     Technique::Light => vec![p_light],
                     _ => ctx
-                        .terms
+                        .terms()
                         .iter()
                         .filter(|t| t.technique == s.technique)
                         .map(|t| term_pdf(scene, x, t, p_light, s.wi))
@@ -410,7 +410,7 @@ impl Bins {
         let x = contexts[0].x;
         let mut polygons: Vec<Vec<Vec3>> = vec![];
         for ctx in contexts {
-            for t in &ctx.terms {
+            for t in ctx.terms() {
                 let portal = &scene.portals[t.portal];
                 match t.technique {
                     // The light's grid holds this term's mass.

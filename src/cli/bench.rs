@@ -16,6 +16,8 @@ use crate::compare::{
 use crate::light::Strategy;
 use crate::render::integrator::{Integrator, RenderSettings};
 use crate::render::record::{RecordedRay, record_pass};
+use crate::render::stats::Stats;
+use crate::render::{Tiles, render_tile};
 use crate::sampling::SamplerKind;
 use crate::scene::Scene;
 use crate::scene::bvh::Bvh;
@@ -69,7 +71,9 @@ pub struct BenchArgs {
     pub ui: bool,
     /// Which measurements: throughput (traversal, samples/s, the cost of textures),
     /// convergence (MSE at equal spp per sampler, time to the target relMSE), textures (only
-    /// their cost: each built-in scene with and without textures), or all.
+    /// their cost: each built-in scene with and without textures), tiles (the cost of a sample
+    /// on one thread, robust to other load: each tile's fastest of `--repeats` renders), or
+    /// all (everything but tiles).
     #[arg(long, value_enum, default_value_t = BenchPart::All)]
     pub only: BenchPart,
     /// The relMSE that "time to an equal error" waits for.
@@ -90,6 +94,9 @@ pub struct BenchArgs {
     /// ~/.cache/portalview].
     #[arg(long)]
     pub cache_dir: Option<std::path::PathBuf>,
+    /// Renders of each tile in `--only tiles`; the fastest counts.
+    #[arg(long, default_value_t = 5)]
+    pub repeats: u32,
 }
 
 /// The parts of `portalview bench`.
@@ -99,6 +106,7 @@ pub enum BenchPart {
     Throughput,
     Convergence,
     Textures,
+    Tiles,
 }
 
 /// `portalview bench`: raw traversal against the renderer, each strategy's cost, and each
@@ -107,11 +115,66 @@ pub fn run(args: &BenchArgs) -> Result<()> {
     if args.only == BenchPart::Textures {
         return textures(args.size, Duration::from_secs_f64(args.seconds));
     }
+    if args.only == BenchPart::Tiles {
+        return tiles(args.size, args.repeats);
+    }
     if args.only != BenchPart::Convergence {
         throughput(args)?;
     }
     if args.only != BenchPart::Throughput {
         convergence(args)?;
+    }
+    Ok(())
+}
+
+/// The cost of one sample on one thread, per built-in scene and strategy: every tile of a
+/// `size²` image (pass 0) is rendered `repeats` times in this thread, and the fastest time of
+/// each tile counts. On a machine shared with other work, a tile's fastest render (about a
+/// millisecond) is rarely disturbed, where a whole render's rate moves by tens of percent.
+fn tiles(size: u32, repeats: u32) -> Result<()> {
+    anyhow::ensure!(
+        repeats > 0 && size > 0,
+        "--repeats and --size must be positive"
+    );
+    println!(
+        "Cost of a sample on one thread, {size}x{size} px, each tile's fastest of {repeats} renders"
+    );
+    println!();
+    println!("| scene | strategy | ns per sample | M samples/s per thread |");
+    println!("|---|---|---:|---:|");
+    let grid = Tiles::new(size, size);
+    for name in builtin::NAMES {
+        let scene = Scene::open(name)?;
+        let rays = scene.camera.rays(1.0);
+        let bvh = &scene.geometry.bvh;
+        for strategy in Strategy::ALL {
+            let integrator = Integrator::new(
+                &scene,
+                RenderSettings {
+                    strategy,
+                    ..RenderSettings::default()
+                },
+            );
+            let mut stats = Stats::default();
+            // Warm-up (the BSDF's albedo table is built on first use).
+            std::hint::black_box(render_tile(&integrator, bvh, &rays, grid, 0, 0, &mut stats));
+            let mut fastest = vec![Duration::MAX; grid.count() as usize];
+            for _ in 0..repeats {
+                for (tile, best) in (0..grid.count()).zip(fastest.iter_mut()) {
+                    let start = Instant::now();
+                    let pixels = render_tile(&integrator, bvh, &rays, grid, tile, 0, &mut stats);
+                    *best = (*best).min(start.elapsed());
+                    std::hint::black_box(pixels);
+                }
+            }
+            let total: Duration = fastest.iter().sum();
+            let ns = total.as_secs_f64() * 1e9 / f64::from(size * size);
+            println!(
+                "| {name} | {} | {ns:.1} | {:.3} |",
+                strategy.name(),
+                1e3 / ns
+            );
+        }
     }
     Ok(())
 }

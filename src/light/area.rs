@@ -95,6 +95,7 @@ impl AreaLight {
     /// The nearest point where the ray `o + t·d` (`t > 0`) meets the light, whichever side, and
     /// `t`; the normal returned is the front of the triangle (or polygon) it meets. Occluders
     /// are ignored: this is where a direction drawn towards the light lands on it.
+    #[inline(always)]
     pub fn intersect(&self, o: Vec3, d: Vec3) -> Option<(LightPoint, f32)> {
         if let Some(polygon) = &self.polygon {
             let t = polygon.intersect(o, d)?;

@@ -32,8 +32,32 @@ pub struct PortalTerm {
     pub technique: Technique,
     /// `w_j(x)`; the terms' weights sum to 1.
     pub weight: f32,
-    /// The light's projection through the portal, seen from x (projection technique only).
-    pub projection: Option<SphericalPolygon>,
+    /// Whether `polygon` holds this point's projection.
+    projected: bool,
+    /// Room for the light's projection through the portal, seen from x: built in place, and
+    /// kept from one shading point to the next (it is over a kilobyte, and a move is a copy).
+    polygon: SphericalPolygon,
+}
+
+impl PortalTerm {
+    /// An unused term, to be filled in place.
+    fn empty() -> Self {
+        PortalTerm {
+            portal: 0,
+            region: Region::Behind,
+            technique: Technique::Light,
+            weight: 0.0,
+            projected: false,
+            polygon: SphericalPolygon::empty(),
+        }
+    }
+
+    /// The light's projection through the portal, seen from x (built for the projection
+    /// technique, and for every term of a point in front of several portals).
+    #[inline(always)]
+    pub fn projection(&self) -> Option<&SphericalPolygon> {
+        self.projected.then_some(&self.polygon)
+    }
 }
 
 /// What the estimator knows about one light at one shading point.
@@ -46,7 +70,10 @@ pub struct LightContext {
     pub has_portals: bool,
     /// Whether `x` is in front of a portal of the light (else plain light sampling).
     pub uses_portals: bool,
-    pub terms: ArrayVec<PortalTerm, MAX_TERMS>,
+    /// The terms of the mixture are the first `count` of these; the rest are room kept from
+    /// earlier shading points, so that a reused context builds its terms without moving one.
+    slots: ArrayVec<PortalTerm, MAX_TERMS>,
+    count: usize,
     /// The region of `x` for the portal with the largest weight (Behind if it is in front of
     /// none; Outside if outside all), for statistics and overlays.
     pub region: Region,
@@ -65,9 +92,16 @@ impl LightContext {
             alpha: 1.0,
             has_portals: false,
             uses_portals: false,
-            terms: ArrayVec::new(),
+            slots: ArrayVec::new(),
+            count: 0,
             region: Region::Behind,
         }
+    }
+
+    /// One term per portal the mixture uses at `x`.
+    #[inline(always)]
+    pub fn terms(&self) -> &[PortalTerm] {
+        &self.slots[..self.count]
     }
 }
 
@@ -199,7 +233,7 @@ impl LightSampler {
         x: Vec3,
         ctx: &mut LightContext,
     ) {
-        self.fill_context_classified(scene, light, x, ctx, &|portal, x| portal.planes.classify(x));
+        self.fill_context_classified(scene, light, x, ctx, &classify_by_planes);
     }
 
     /// [`Self::fill_context`] with the regions given by `classify`. Any classifier keeps the
@@ -213,20 +247,21 @@ impl LightSampler {
         light: usize,
         x: Vec3,
         ctx: &mut LightContext,
-        classify: &dyn Fn(&Portal, Vec3) -> Region,
+        classify: &(impl Fn(&Portal, Vec3) -> Region + ?Sized),
     ) {
         ctx.light = light;
         ctx.x = x;
         ctx.alpha = self.alpha_of[light];
         ctx.uses_portals = false;
         ctx.has_portals = self.strategy != Strategy::Light && !self.portals_of[light].is_empty();
-        ctx.terms.clear();
+        ctx.count = 0;
         ctx.region = Region::Behind;
         if !ctx.has_portals {
             return;
         }
         // Classify first, then build each term once, in place: a term holds a large
-        // spherical polygon, so it is not moved around afterwards.
+        // spherical polygon, so it is never moved (a context reused from point to point
+        // rewrites the terms it already has room for).
         let mut candidates: ArrayVec<(usize, Region, Technique), MAX_TERMS> = ArrayVec::new();
         for &j in &self.portals_of[light] {
             let region = classify(&scene.portals()[j], x);
@@ -242,44 +277,38 @@ impl LightSampler {
         // Weights by the light's solid angle through each portal; one term needs none.
         let several = candidates.len() > 1;
         for (j, region, technique) in candidates {
-            // The term goes in first and its projection is built into it: a spherical polygon
-            // is over a kilobyte, and each move of it is a copy.
-            let needs_projection = several || technique == Technique::Projection;
-            if ctx
-                .terms
-                .try_push(PortalTerm {
-                    portal: j,
-                    region,
-                    technique,
-                    weight: 1.0,
-                    projection: needs_projection.then(SphericalPolygon::empty),
-                })
-                .is_err()
-            {
+            if ctx.count == ctx.slots.len() && ctx.slots.try_push(PortalTerm::empty()).is_err() {
                 break;
             }
-            let Some(term) = ctx.terms.last_mut() else {
+            let Some(term) = ctx.slots.get_mut(ctx.count) else {
                 break;
             };
-            if let Some(q) = &mut term.projection
-                && !projection_into(&scene.portals()[j], x, q)
-            {
-                term.projection = None;
-            }
+            term.portal = j;
+            term.region = region;
+            term.technique = technique;
+            term.weight = 1.0;
+            let needs_projection = several || technique == Technique::Projection;
+            term.projected =
+                needs_projection && projection_into(&scene.portals()[j], x, &mut term.polygon);
             if several {
-                term.weight = term.projection.as_ref().map_or(0.0, |q| q.solid_angle());
+                term.weight = if term.projected {
+                    term.polygon.solid_angle()
+                } else {
+                    0.0
+                };
             }
-            let usable = technique != Technique::Projection || term.projection.is_some();
-            if term.weight <= 0.0 || !usable {
-                ctx.terms.pop();
+            let usable = technique != Technique::Projection || term.projected;
+            if term.weight > 0.0 && usable {
+                ctx.count += 1;
             }
         }
-        let total: f32 = ctx.terms.iter().map(|t| t.weight).sum();
-        for term in ctx.terms.iter_mut() {
+        let terms = &mut ctx.slots[..ctx.count];
+        let total: f32 = terms.iter().map(|t| t.weight).sum();
+        for term in terms.iter_mut() {
             term.weight /= total;
         }
         if let Some(best) = ctx
-            .terms
+            .terms()
             .iter()
             .max_by(|a, b| a.weight.total_cmp(&b.weight))
         {
@@ -320,7 +349,7 @@ impl LightSampler {
         } else {
             // Rescale the remaining share to pick the portal term.
             let v = (u_technique - ctx.alpha) / (1.0 - ctx.alpha);
-            let term = pick_by_weight(&ctx.terms, |t| t.weight, v)?;
+            let term = pick_by_weight(ctx.terms(), |t| t.weight, v)?;
             let portal = &scene.portals()[term.portal];
             let sampled = match term.technique {
                 Technique::Light => from_light(light.sample_point(u)?)?,
@@ -329,7 +358,7 @@ impl LightSampler {
                     (wi, self.light_hit(scene, ctx.light, x, wi), pdf)
                 }
                 Technique::Projection => {
-                    let (wi, pdf) = term.projection.as_ref()?.sample(u)?;
+                    let (wi, pdf) = term.projection()?.sample(u)?;
                     (wi, self.light_hit(scene, ctx.light, x, wi), pdf)
                 }
             };
@@ -355,6 +384,7 @@ impl LightSampler {
     /// Where the ray from the context's point along `wi` first meets the light, ignoring
     /// occluders (the shadow ray checks them): the point a portal or projection sample lands
     /// on, whose area density enters `p_L`.
+    #[inline(always)]
     pub fn light_hit(
         &self,
         scene: &impl LightSet,
@@ -366,6 +396,7 @@ impl LightSampler {
     }
 
     /// The mixture pdf `q(wi)` for a direction whose light hit is `hit` (point and distance).
+    #[inline(always)]
     pub fn pdf(
         &self,
         scene: &impl LightSet,
@@ -378,7 +409,7 @@ impl LightSampler {
             return p_light;
         }
         let portals: f32 = ctx
-            .terms
+            .terms()
             .iter()
             .map(|t| t.weight * term_pdf(scene, ctx.x, t, p_light, wi))
             .sum();
@@ -396,7 +427,7 @@ impl LightSampler {
         let beyond = (scene.lights()[ctx.light].direction_pdf(ctx.x, wi) - first).max(0.0);
         let light_share = if ctx.uses_portals {
             let light_terms: f32 = ctx
-                .terms
+                .terms()
                 .iter()
                 .filter(|t| t.technique == Technique::Light)
                 .map(|t| t.weight)
@@ -409,6 +440,7 @@ impl LightSampler {
     }
 
     /// The light technique's pdf `p_L(wi)` for a direction whose light hit is `hit`.
+    #[inline(always)]
     pub fn light_pdf(
         &self,
         scene: &impl LightSet,
@@ -421,12 +453,20 @@ impl LightSampler {
     }
 }
 
+/// The classifier of [`LightSampler::fill_context`]: the portal's precomputed planes. A function
+/// rather than a closure, so that it is inlined into the renderer's instruction-set variants.
+#[inline(always)]
+fn classify_by_planes(portal: &Portal, x: Vec3) -> Region {
+    portal.planes.classify(x)
+}
+
 /// `p_{s_j}(wi | x)`: one portal term's technique density (`p_light` is `p_L(wi)`).
+#[inline(always)]
 pub fn term_pdf(scene: &impl LightSet, x: Vec3, term: &PortalTerm, p_light: f32, wi: Vec3) -> f32 {
     match term.technique {
         Technique::Light => p_light,
         Technique::Portal => portal_pdf(&scene.portals()[term.portal], x, wi),
-        Technique::Projection => term.projection.as_ref().map_or(0.0, |q| q.pdf(wi)),
+        Technique::Projection => term.projection().map_or(0.0, |q| q.pdf(wi)),
     }
 }
 
@@ -450,6 +490,7 @@ pub fn projection(portal: &Portal, x: Vec3) -> Option<SphericalPolygon> {
 
 /// [`projection`] built in `q` (over a kilobyte, so built where the context keeps it); false,
 /// leaving `q` empty, where `projection` gives `None`.
+#[inline(always)]
 pub fn projection_into(portal: &Portal, x: Vec3, q: &mut SphericalPolygon) -> bool {
     let mut vertices = Verts::new();
     projected_light_into(portal, x, &mut vertices);
@@ -464,6 +505,7 @@ pub fn projected_light(portal: &Portal, x: Vec3) -> Verts {
 }
 
 /// [`projected_light`] into `q`.
+#[inline(always)]
 pub fn projected_light_into(portal: &Portal, x: Vec3, q: &mut Verts) {
     q.clear();
     let plane: Plane = portal.polygon.plane();
@@ -472,11 +514,11 @@ pub fn projected_light_into(portal: &Portal, x: Vec3, q: &mut Verts) {
         return;
     }
     let mut projected = Verts::new();
-    projected.extend(portal.planes.light_behind_portal().iter().map(|&v| {
+    for &v in portal.planes.light_behind_portal() {
         // x is in front and v on or behind the plane, so the segment crosses it once.
         let dv = plane.signed_distance(v);
-        x + (v - x) * (dx / (dx - dv))
-    }));
+        let _ = projected.try_push(x + (v - x) * (dx / (dx - dv)));
+    }
     // A solid's vertices project to a point set: its outline is their convex hull.
     if portal.planes.is_hull() {
         projected = convex_hull_in_plane(&projected, plane.n);
@@ -488,7 +530,10 @@ pub fn projected_light_into(portal: &Portal, x: Vec3, q: &mut Verts) {
     // spherical polygon's inside test uses, would cut through Q. The copies differ by the
     // clip's rounding, a few ulps of the coordinates; edges as short as 1e-5 of the scene
     // (the light clip's tolerance) carry no shape worth keeping either.
-    let max_coordinate = q.iter().map(|v| v.abs().max_element()).fold(0.0, f32::max);
+    let mut max_coordinate = 0.0f32;
+    for v in q.iter() {
+        max_coordinate = max_coordinate.max(v.abs().max_element());
+    }
     let tol = MERGE_TOLERANCE * portal.planes.scale() + 64.0 * f32::EPSILON * max_coordinate;
     merge_close(q, tol);
 }

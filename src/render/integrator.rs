@@ -52,6 +52,31 @@ struct Shading<'m> {
     material: &'m Material,
 }
 
+/// The two light contexts that a path's consecutive shading points fill in turn (the
+/// previous one stays for the MIS weight of the BSDF sample). Kept from one path to the next:
+/// a context's terms are then rewritten in place, never moved in (a term holds a spherical
+/// polygon of over a kilobyte).
+pub struct PathContexts {
+    even: LightContext,
+    odd: LightContext,
+}
+
+impl PathContexts {
+    #[inline(always)]
+    pub fn new() -> Self {
+        PathContexts {
+            even: LightContext::new(),
+            odd: LightContext::new(),
+        }
+    }
+}
+
+impl Default for PathContexts {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
 /// Next-event estimation's result at one shading point.
 #[derive(Clone, Copy)]
 struct Direct {
@@ -129,12 +154,21 @@ impl<'a> Integrator<'a> {
 
     /// Radiance arriving at `origin` from direction `-dir`.
     pub fn radiance(&self, origin: Vec3, dir: Vec3, rng: &mut Sampler, stats: &mut Stats) -> Vec3 {
-        self.radiance_traced(&self.scene.geometry.bvh, origin, dir, rng, stats)
+        let mut contexts = PathContexts::new();
+        self.radiance_traced(
+            &self.scene.geometry.bvh,
+            origin,
+            dir,
+            rng,
+            stats,
+            &mut contexts,
+        )
     }
 
     /// [`Self::radiance`] with every ray traced through `tracer`: the scene's BVH, or the
     /// benchmark's recorder of it. Always inlined, with the steps it calls: the tile renderer
-    /// compiles it once per instruction set (`render::render_tile_isa`).
+    /// compiles it once per instruction set (`render::render_tile_isa`). `contexts` is
+    /// scratch room, reused from path to path.
     #[inline(always)]
     pub fn radiance_traced<T: Tracer>(
         &self,
@@ -143,16 +177,14 @@ impl<'a> Integrator<'a> {
         dir: Vec3,
         rng: &mut Sampler,
         stats: &mut Stats,
+        contexts: &mut PathContexts,
     ) -> Vec3 {
         let geometry = &*self.scene.geometry;
         let mut l = Vec3::ZERO;
         let mut beta = Vec3::ONE;
         let (mut o, mut d) = (origin, dir);
         // Two context buffers, reused in turn by consecutive vertices (see `fill_context`).
-        // Separate locals, not an array: built in place, whereas an array of two was filled by
-        // copying a 10 KB context per path.
-        let mut even = LightContext::new();
-        let mut odd = LightContext::new();
+        let PathContexts { even, odd } = contexts;
         let mut previous: Option<(Vec3, bool, f32)> = None;
         stats.camera_rays += 1;
         for depth in 0..=self.settings.max_depth {
@@ -160,7 +192,7 @@ impl<'a> Integrator<'a> {
             if depth == self.settings.max_depth && self.polygon_lights {
                 let prev = previous.map(|(x, picked, bsdf_pdf)| Previous {
                     x,
-                    ctx: picked.then_some(if depth % 2 == 0 { &odd } else { &even }),
+                    ctx: picked.then_some(if depth % 2 == 0 { &*odd } else { &*even }),
                     bsdf_pdf,
                 });
                 l += beta * self.emission_along(tracer, o, d, prev.as_ref(), stats);
@@ -200,7 +232,7 @@ impl<'a> Integrator<'a> {
                     Some((x, picked, bsdf_pdf)) if le != Vec3::ZERO => {
                         let prev = Previous {
                             x,
-                            ctx: picked.then_some(if depth % 2 == 0 { &odd } else { &even }),
+                            ctx: picked.then_some(if depth % 2 == 0 { &*odd } else { &*even }),
                             bsdf_pdf,
                         };
                         let y = LightPoint { p, n: ng };
@@ -234,7 +266,11 @@ impl<'a> Integrator<'a> {
                 &shading,
                 rng,
                 stats,
-                if depth % 2 == 0 { &mut even } else { &mut odd },
+                if depth % 2 == 0 {
+                    &mut *even
+                } else {
+                    &mut *odd
+                },
             );
             let picked = direct.is_some_and(|d| d.context_filled);
             l += beta * direct.map_or(Vec3::ZERO, |d| d.l);
@@ -588,6 +624,7 @@ impl<'a> Integrator<'a> {
 
     /// The light technique's pdf (selection times mixture) for the direction `d` from the
     /// previous vertex, which reached point `y` of light `light` at distance `t`.
+    #[inline(always)]
     fn light_pdf(&self, prev: &Previous, light: usize, d: Vec3, y: LightPoint, t: f32) -> f32 {
         let prob = self.lights.light_probability(light);
         if prob <= 0.0 {

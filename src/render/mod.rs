@@ -16,7 +16,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use crate::camera::RayGenerator;
 use crate::scene::bvh::Tracer;
 use film::Film;
-use integrator::Integrator;
+use integrator::{Integrator, PathContexts};
 use stats::Stats;
 
 /// Side of the square tiles that threads take.
@@ -199,6 +199,7 @@ fn tile_samples<T: Tracer>(
     let (x0, y0, w, h) = tiles.rect(tile);
     let size = Vec2::new(tiles.width as f32, tiles.height as f32);
     let mut pixels = Vec::with_capacity((w * h) as usize);
+    let mut contexts = PathContexts::new();
     for y in y0..y0 + h {
         for x in x0..x0 + w {
             let mut rng = settings
@@ -206,7 +207,7 @@ fn tile_samples<T: Tracer>(
                 .start(settings.seed, x, y, tiles.width, pass);
             let jitter = rng.uniform2();
             let (o, d) = rays.ray((Vec2::new(x as f32, y as f32) + jitter) / size);
-            let l = integrator.radiance_traced(tracer, o, d, &mut rng, stats);
+            let l = integrator.radiance_traced(tracer, o, d, &mut rng, stats, &mut contexts);
             pixels.push(stats.finite_or_counted(l));
         }
     }

@@ -154,7 +154,7 @@ fn classify_ray(
             continue;
         }
         let top = ctx
-            .terms
+            .terms()
             .iter()
             .max_by(|a, b| a.weight.total_cmp(&b.weight));
         let weight = sampler.light_probability(light) * top.map_or(0.0, |t| t.weight);

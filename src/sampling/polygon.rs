@@ -473,9 +473,15 @@ fn clip_by_plane_into(vertices: &[Vec3], plane: Plane, out: &mut Verts) {
 }
 
 /// Sutherland–Hodgman given each vertex's signed distance to the plane (each computed once).
+#[inline(always)]
 fn clip_by_distances_into(vertices: &[Vec3], distances: &[f32], out: &mut Verts) {
     out.clear();
-    for ((a, b), (da, db)) in super::cyclic_pairs(vertices).zip(super::cyclic_pairs(distances)) {
+    // Plain index loops on this path (per shading point): the iterator adapters were left
+    // out of line, compiled without the renderer's instruction-set features.
+    let n = vertices.len().min(distances.len());
+    for i in 0..n {
+        let next = if i + 1 == n { 0 } else { i + 1 };
+        let (a, b, da, db) = (vertices[i], vertices[next], distances[i], distances[next]);
         if da >= 0.0 {
             push(out, a);
         }
@@ -486,6 +492,7 @@ fn clip_by_distances_into(vertices: &[Vec3], distances: &[f32], out: &mut Verts)
     }
 }
 
+#[inline(always)]
 fn push(out: &mut Verts, p: Vec3) {
     // Capacity covers every clip this crate performs; a full buffer would mean a logic error.
     debug_assert!(!out.is_full());
@@ -500,13 +507,19 @@ pub fn clip_convex(subject: &[Vec3], clip: &ConvexPolygon) -> Verts {
 }
 
 /// [`clip_convex`] into `out` (a clip per shading point: no vertex array is moved).
+#[inline(always)]
 pub fn clip_convex_into(subject: &[Vec3], clip: &ConvexPolygon, out: &mut Verts) {
     out.clear();
     out.extend(subject.iter().copied());
     // `out` and `spare` take turns as source and destination.
     let mut spare = Verts::new();
     let mut in_spare = false;
-    for (a, b) in clip.edges() {
+    let corners = clip.vertices();
+    for k in 0..corners.len() {
+        let (a, b) = (
+            corners[k],
+            corners[if k + 1 == corners.len() { 0 } else { k + 1 }],
+        );
         let src = if in_spare { &spare } else { &*out };
         if src.len() < 3 {
             out.clear();
@@ -518,16 +531,21 @@ pub fn clip_convex_into(subject: &[Vec3], clip: &ConvexPolygon, out: &mut Verts)
             n: inward,
             d: inward.dot(a),
         };
-        let mut distances: ArrayVec<f32, MAX_CLIP_VERTICES> = ArrayVec::new();
-        distances.extend(src.iter().map(|&p| plane.signed_distance(p)));
+        let mut distances = [0.0f32; MAX_CLIP_VERTICES];
+        let mut all_inside = true;
+        for (d, &p) in distances.iter_mut().zip(src.iter()) {
+            *d = plane.signed_distance(p);
+            all_inside &= *d >= 0.0;
+        }
         // An edge that keeps every vertex leaves the polygon as it is: no copy.
-        if distances.iter().all(|&d| d >= 0.0) {
+        if all_inside {
             continue;
         }
+        let distances = &distances[..src.len()];
         if in_spare {
-            clip_by_distances_into(&spare, &distances, out);
+            clip_by_distances_into(&spare, distances, out);
         } else {
-            clip_by_distances_into(out, &distances, &mut spare);
+            clip_by_distances_into(out, distances, &mut spare);
         }
         in_spare = !in_spare;
     }
@@ -541,13 +559,26 @@ pub fn clip_convex_into(subject: &[Vec3], clip: &ConvexPolygon, out: &mut Verts)
 /// the first: a clip repeats, a few ulps apart, a vertex that lies on a clipping plane, and the
 /// edge between the copies has a direction made by rounding. What is kept is a subsequence of
 /// the vertices, so a convex polygon stays convex.
+#[inline(always)]
 pub fn merge_close(vertices: &mut Verts, tol: f32) {
-    let kept = merge_close_by(vertices, |a, b| a.distance_squared(b) <= tol * tol);
+    // `merge_close_by` written out: its closure was left out of line on the renderer's path.
+    let tol2 = tol * tol;
+    let mut kept = 0;
+    for i in 0..vertices.len() {
+        if kept == 0 || vertices[kept - 1].distance_squared(vertices[i]) > tol2 {
+            vertices[kept] = vertices[i];
+            kept += 1;
+        }
+    }
+    while kept > 1 && vertices[0].distance_squared(vertices[kept - 1]) <= tol2 {
+        kept -= 1;
+    }
     vertices.truncate(kept);
 }
 
 /// [`merge_close`] for any vertex type and closeness: moves the kept vertices to the front of
 /// `vertices` and returns how many there are.
+#[inline(always)]
 pub fn merge_close_by<T: Copy>(vertices: &mut [T], close: impl Fn(T, T) -> bool) -> usize {
     let mut kept = 0;
     for i in 0..vertices.len() {

@@ -50,6 +50,7 @@ fn solid_angle_f64(a: DVec3, b: DVec3, c: DVec3) -> f64 {
 /// Van Oosterom–Strackee as a complex number `z = (1 + a·b + b·c + c·a) + i·|a·(b×c)|`, whose
 /// argument is half the solid angle: a fan's half-angles add, so its cumulative solid angles
 /// are products of these, and one `atan2` of the last product gives the polygon's.
+#[inline(always)]
 fn half_solid_angle_phasor(a: DVec3, b: DVec3, c: DVec3) -> DVec2 {
     DVec2::new(
         1.0 + a.dot(b) + b.dot(c) + c.dot(a),
@@ -58,6 +59,7 @@ fn half_solid_angle_phasor(a: DVec3, b: DVec3, c: DVec3) -> DVec2 {
 }
 
 /// The product of two complex numbers `(re, im)`: their arguments add.
+#[inline(always)]
 fn complex_mul(p: DVec2, q: DVec2) -> DVec2 {
     DVec2::new(p.x * q.x - p.y * q.y, p.x * q.y + p.y * q.x)
 }
@@ -87,6 +89,7 @@ pub fn sample_spherical_triangle(a: Vec3, b: Vec3, c: Vec3, u: Vec2) -> Option<V
 /// Oosterom–Strackee formula instead (same map), with every quantity formed from vertex
 /// differences, and without trigonometry: the half-angle `s/2` of the arc `a → c'` is kept as
 /// the vector `(cos, sin)` it is the argument of.
+#[inline(always)]
 pub fn sample_spherical_triangle_part(
     a: Vec3,
     b: Vec3,
@@ -114,11 +117,15 @@ pub fn sample_spherical_triangle_part(
     // cancelling cos s − 1. Past the arc's half-length (sin, cos) = (|c − a|, |c + a|)/2,
     // c' is c itself (rounding only).
     let cp_minus_a = if r > 0.0 {
-        let (sin_s, cos_s) = (y / r, x / r);
-        let (sin_arc, cos_arc) = (0.5 * ac.length(), 0.5 * (a + c).length());
-        if sin_s * cos_arc - cos_s * sin_arc > 0.0 {
+        // Past the arc ⇔ sin(s/2)·|c + a| > cos(s/2)·|c − a|, i.e. y·|c + a| > x·|c − a| (r > 0,
+        // y >= 0): true for x < 0 (s/2 > π/2, the half-arc is at most π/2), else compared
+        // squared, without the two lengths.
+        let past_arc = x < 0.0 || y * y * (a + c).length_squared() > x * x * ac.length_squared();
+        if past_arc {
             ac
         } else {
+            let inverse_r = r.recip();
+            let (sin_s, cos_s) = (y * inverse_r, x * inverse_r);
             2.0 * sin_s * (cos_s * t - sin_s * a)
         }
     } else {
@@ -169,15 +176,18 @@ pub fn invert_spherical_triangle_sample(a: Vec3, b: Vec3, c: Vec3, w: Vec3) -> O
 /// The point of the convex polygon `vertices` (relative to x, wound so that `v_i × v_{i+1}`
 /// points inside) nearest x, given the foot of x on its plane and those edge-plane normals
 /// `m_i = v_i × v_{i+1}`.
+#[inline(always)]
 fn nearest_point(vertices: &[DVec3], edge_normals: &[DVec3], foot: DVec3) -> DVec3 {
     // Outside, the nearest point is on an edge that has the foot on its outer side (at a
     // vertex, on one of its two edges): only those are searched.
     let mut nearest = foot;
     let mut nearest_distance = f64::INFINITY;
-    for ((a, b), m) in super::cyclic_pairs(vertices).zip(edge_normals) {
-        if foot.dot(*m) >= 0.0 {
+    let n = vertices.len().min(edge_normals.len());
+    for i in 0..n {
+        if foot.dot(edge_normals[i]) >= 0.0 {
             continue;
         }
+        let (a, b) = (vertices[i], vertices[if i + 1 == n { 0 } else { i + 1 }]);
         let e = b - a;
         let p = a + (-a.dot(e) / e.length_squared()).clamp(0.0, 1.0) * e;
         let distance = p.length_squared();
@@ -206,8 +216,11 @@ pub struct SphericalPolygon {
     points: Verts,
     /// Unit direction to the polygon's point nearest `origin`: the apex of the fan.
     apex: Vec3,
-    /// Unit normals of the planes through `origin` and each edge `(v_i, v_{i+1})`, pointing inside.
+    /// Normals of the planes through `origin` and each edge `(v_i, v_{i+1})`, pointing inside,
+    /// of length `sin` of the edge's arc (`u_i × u_{i+1}` for the unit directions `u_i`).
     edge_normals: Verts,
+    /// Per edge, `(EDGE_TOLERANCE · |m̂_i|)²`: the inside test's slack without normalising.
+    edge_slack: ArrayVec<f32, MAX_CLIP_VERTICES>,
     /// Per fan triangle `(apex, v_i, v_{i+1})`, `i = 0..n`: the cumulative half solid angle
     /// `Φ_i = Σ_{k ≤ i} Ω_k / 2` as the complex number `ρ_i·(cos Φ_i, sin Φ_i)`, `ρ_i > 0`.
     fan: ArrayVec<DVec2, MAX_CLIP_VERTICES>,
@@ -240,6 +253,7 @@ impl SphericalPolygon {
             points: Verts::new(),
             apex: Vec3::ZERO,
             edge_normals: Verts::new(),
+            edge_slack: ArrayVec::new(),
             fan: ArrayVec::new(),
             fan_usable: 0,
             half_solid_angle: 0.0,
@@ -253,60 +267,74 @@ impl SphericalPolygon {
     /// [`Self::new`] in place (a polygon is over a kilobyte: a shading point builds it where it
     /// is kept rather than moving it there). Returns false, leaving the polygon empty, where
     /// `new` returns `None`.
+    #[inline(always)]
     pub fn set(&mut self, x: Vec3, vertices: &[Vec3]) -> bool {
         self.points.clear();
         self.edge_normals.clear();
+        self.edge_slack.clear();
         self.fan.clear();
         self.fan_usable = 0;
         self.half_solid_angle = 0.0;
         self.solid_angle = 0.0;
         let n = vertices.len();
-        if !(3..=MAX_CLIP_VERTICES).contains(&n)
-            || !x.is_finite()
-            || vertices.iter().any(|v| !v.is_finite())
-        {
+        if !(3..=MAX_CLIP_VERTICES).contains(&n) || !x.is_finite() {
             return false;
         }
         // Set-up runs in f64, where differences of f32 positions are exact: a small polygon far
         // from `x` or from the world origin keeps its shape, and solid angles near 2π keep their
-        // digits.
+        // digits. (Plain index loops: iterator adapters were left out of line here, compiled
+        // without the renderer's instruction-set features.)
         let xd = x.as_dvec3();
-        let v0 = vertices[0].as_dvec3();
-        // Normal and area from edge vectors (Newell's sum of `v_i × v_{i+1}` cancels far from the
-        // world origin).
-        let twice_area: DVec3 = vertices[1..]
-            .windows(2)
-            .map(|w| (w[0].as_dvec3() - v0).cross(w[1].as_dvec3() - v0))
-            .sum();
+        let mut offsets: ArrayVec<DVec3, MAX_CLIP_VERTICES> = ArrayVec::new();
+        let mut offset_sum = DVec3::ZERO;
+        for v in vertices {
+            if !v.is_finite() {
+                return false;
+            }
+            let r = v.as_dvec3() - xd;
+            offset_sum += r;
+            offsets.push(r);
+        }
+        // The sum of `r_i × (r_{i+1} − r_i)` (= r_i × r_{i+1}, without its cancellation for a
+        // small polygon far away) is twice the vector area (Newell's, about x).
+        let mut twice_area = DVec3::ZERO;
+        for i in 0..n {
+            let (r, r_next) = (offsets[i], offsets[if i + 1 == n { 0 } else { i + 1 }]);
+            twice_area += r.cross(r_next - r);
+        }
         let twice_area_length = twice_area.length();
         if !(twice_area_length > 0.0 && twice_area_length.is_finite()) {
             return false;
         }
         let winding_normal = twice_area / twice_area_length;
-        let mut offsets: ArrayVec<DVec3, MAX_CLIP_VERTICES> = ArrayVec::new();
-        offsets.extend(vertices.iter().map(|v| v.as_dvec3() - xd));
-        let mean_offset = offsets.iter().copied().sum::<DVec3>() / n as f64;
-        // Orient the polygon so that its winding normal points away from x: then `r_i × r_{i+1}`
-        // points inside for every edge.
+        let mean_offset = offset_sum / n as f64;
+        // Orient the polygon so that its winding normal points away from x: then the edge-plane
+        // normals `m_i = r_i × (r_{i+1} − r_i)` point inside.
         let mut away = winding_normal;
         if away.dot(mean_offset) < 0.0 {
             away = -away;
             offsets.reverse();
         }
+        let mut normals: ArrayVec<DVec3, MAX_CLIP_VERTICES> = ArrayVec::new();
+        for i in 0..n {
+            let (r, r_next) = (offsets[i], offsets[if i + 1 == n { 0 } else { i + 1 }]);
+            normals.push(r.cross(r_next - r));
+        }
         // One length per vertex: the scale of the edge-on test, and the unit directions.
         let mut unit: ArrayVec<DVec3, MAX_CLIP_VERTICES> = ArrayVec::new();
+        let mut inverse_length: ArrayVec<f64, MAX_CLIP_VERTICES> = ArrayVec::new();
         let mut scale = 0.0f64;
         for r in &offsets {
             let length = r.length();
             scale = scale.max(length);
-            unit.push(*r * length.recip());
+            let inverse = length.recip();
+            inverse_length.push(inverse);
+            unit.push(*r * inverse);
         }
         let height = away.dot(mean_offset);
         if height.is_nan() || height <= PLANE_TOLERANCE * scale {
             return false;
         }
-        let mut normals: ArrayVec<DVec3, MAX_CLIP_VERTICES> = ArrayVec::new();
-        normals.extend(super::cyclic_pairs(&offsets).map(|(r, r_next)| r.cross(r_next - r)));
         // The fan's apex is the polygon's point nearest x, not a vertex: every polygon point is
         // then less than 90° from it, whereas from x close to a large polygon the diagonals of
         // a vertex fan join nearly opposite directions, whose great circles f32 cannot pin down.
@@ -316,33 +344,71 @@ impl SphericalPolygon {
         // below π/2 and their sum, Ω/2, below π; and `|z| <= 4.2`, `|z| >= 1 + v_i·v_{i+1}`,
         // so the products stay far inside f64's range unless x is within ~1e-10 of the plane
         // of a polygon of many vertices, when they are rescaled (their arguments stay).
+        //
+        // Per edge, `m̂_i = m_i / (|r_i| |r_{i+1}|)` is `u_i × u_{i+1}` (unit directions) from
+        // the accurate normal: it gives the fan triangle's triple product `apex · m̂_i` and the
+        // edge's plane for the inside test, without a second square root per vertex.
+        let mut apex_dot: ArrayVec<f64, MAX_CLIP_VERTICES> = ArrayVec::new();
+        for u in &unit {
+            apex_dot.push(apex.dot(*u));
+        }
         let mut cumulative = DVec2::X;
-        for (i, (a, b)) in super::cyclic_pairs(&unit).enumerate() {
-            let z = half_solid_angle_phasor(apex, a, b);
+        let mut phasors: ArrayVec<DVec2, MAX_CLIP_VERTICES> = ArrayVec::new();
+        let (mut smallest, mut largest) = (1.0f64, 1.0f64);
+        for i in 0..n {
+            let next = if i + 1 == n { 0 } else { i + 1 };
+            let m = normals[i] * (inverse_length[i] * inverse_length[next]);
+            let z = DVec2::new(
+                1.0 + apex_dot[i] + unit[i].dot(unit[next]) + apex_dot[next],
+                apex.dot(m).abs(),
+            );
             // Ω_i > MIN ⇔ tan(Ω_i/2) > MIN/2 (to f64 rounding of the tangent).
             if z.y > 0.0 && z.y > 0.5 * f64::from(MIN_TRIANGLE_SOLID_ANGLE) * z.x {
                 self.fan_usable |= 1 << i;
             }
+            // The products' range is checked after the loop, off its chain of multiplications
+            // (a rescale in the loop put a division into every step).
             cumulative = complex_mul(cumulative, z);
             let magnitude = cumulative.x.abs() + cumulative.y.abs();
-            if !(1e-150..=1e150).contains(&magnitude) {
-                cumulative /= magnitude;
-            }
+            smallest = smallest.min(magnitude);
+            largest = largest.max(magnitude);
+            phasors.push(z);
             self.fan.push(cumulative);
+            // `m̂ · ω >= −ε |m̂|` as `d >= 0 || d² <= ε² |m̂|²` (see `contains`).
+            self.edge_normals.push(m.as_vec3());
+            self.edge_slack.push(
+                (f64::from(EDGE_TOLERANCE) * f64::from(EDGE_TOLERANCE) * m.length_squared()) as f32,
+            );
+        }
+        if !(1e-150..=1e150).contains(&smallest) || !(1e-150..=1e150).contains(&largest) {
+            // Rare: redone with each product rescaled as it leaves the range.
+            self.fan.clear();
+            cumulative = DVec2::X;
+            for z in &phasors {
+                cumulative = complex_mul(cumulative, *z);
+                let magnitude = cumulative.x.abs() + cumulative.y.abs();
+                if !(1e-150..=1e150).contains(&magnitude) {
+                    cumulative /= magnitude;
+                }
+                self.fan.push(cumulative);
+            }
         }
         let half_solid_angle = cumulative.y.atan2(cumulative.x);
         let solid_angle = (2.0 * half_solid_angle) as f32;
         if !(solid_angle > 0.0 && solid_angle.is_finite()) {
             self.fan.clear();
             self.fan_usable = 0;
+            self.edge_normals.clear();
+            self.edge_slack.clear();
             return false;
         }
-        self.edge_normals
-            .extend(normals.iter().map(|m| m.normalize_or_zero().as_vec3()));
-        if solid_angle < SMALL_SOLID_ANGLE {
-            self.points.extend(offsets.iter().map(|r| r.as_vec3()));
+        let kept = if solid_angle < SMALL_SOLID_ANGLE {
+            &offsets
         } else {
-            self.points.extend(unit.iter().map(|d| d.as_vec3()));
+            &unit
+        };
+        for r in kept {
+            self.points.push(r.as_vec3());
         }
         self.origin = x;
         self.apex = apex.as_vec3();
@@ -373,17 +439,20 @@ impl SphericalPolygon {
     }
 
     /// The solid angle Ω the polygon subtends from the origin (sr).
+    #[inline(always)]
     pub fn solid_angle(&self) -> f32 {
         self.solid_angle
     }
 
     /// Whether the polygon is too small to sample by solid angle (see [`SMALL_SOLID_ANGLE`]);
     /// depends on the origin only, so [`Self::sample`] and [`Self::pdf`] always agree.
+    #[inline(always)]
     pub fn is_area_sampled(&self) -> bool {
         self.solid_angle < SMALL_SOLID_ANGLE
     }
 
     /// A unit direction `wi` through the polygon and its pdf in solid angle.
+    #[inline(always)]
     pub fn sample(&self, u: Vec2) -> Option<(Vec3, f32)> {
         if self.is_area_sampled() {
             let wi = sample_polygon_area(&self.points, u).try_normalize()?;
@@ -398,6 +467,7 @@ impl SphericalPolygon {
 
     /// The pdf in solid angle of [`Self::sample`] for the unit direction `wi`: 0 unless the ray
     /// `origin + t·wi`, `t > 0`, passes through the polygon (boundary included).
+    #[inline(always)]
     pub fn pdf(&self, wi: Vec3) -> f32 {
         if !self.contains(wi) {
             0.0
@@ -409,18 +479,27 @@ impl SphericalPolygon {
     }
 
     /// Whether the unit direction `wi` is inside the polygon's cone, up to [`EDGE_TOLERANCE`].
+    #[inline(always)]
     fn contains(&self, wi: Vec3) -> bool {
         // The edge planes alone bound the cone; the first test rejects the opposite hemisphere
         // early and keeps `area_pdf` away from grazing directions.
-        self.plane.n.dot(wi) < 0.0
-            && self
-                .edge_normals
-                .iter()
-                .all(|m| m.dot(wi) >= -EDGE_TOLERANCE)
+        // `m̂ · wi >= −EDGE_TOLERANCE · |m̂|`, squared on the negative side: the edge normals
+        // are not normalised.
+        if self.plane.n.dot(wi) >= 0.0 {
+            return false;
+        }
+        for (m, &slack) in self.edge_normals.iter().zip(&self.edge_slack) {
+            let d = m.dot(wi);
+            if d < 0.0 && d * d > slack {
+                return false;
+            }
+        }
+        true
     }
 
     /// Area sampling's pdf in solid angle, `d² / (A·|cos θ|)`: here `d = h / |cos θ|` with `h`
     /// the origin's distance to the plane, so sample and pdf use the same expression.
+    #[inline(always)]
     fn area_pdf(&self, wi: Vec3) -> f32 {
         let cos_theta = self.plane.n.dot(wi).abs();
         self.height * self.height / (self.area * cos_theta * cos_theta * cos_theta)
@@ -431,6 +510,7 @@ impl SphericalPolygon {
     /// rescales `u` into the triangle's bin of the cumulative solid angles (so stratification
     /// carries over to the triangle), `A' = 2·(u·Ω/2 − Φ_{i−1})`, done on the complex numbers
     /// of the fan: one `sin_cos` per sample, no angle per triangle.
+    #[inline(always)]
     fn pick_fan_triangle(&self, u: f32) -> Option<(usize, f32, f32)> {
         let target = f64::from(u) * self.half_solid_angle;
         let (sin_t, cos_t) = target.sin_cos();
@@ -713,6 +793,184 @@ mod tests {
                 assert!(expected >= -1e-5 * total && expected <= areas[i] + 1e-5 * total);
             }
         }
+    }
+
+    /// [`SphericalPolygon::set`] as it was before it took the normal and area from the edge
+    /// normals, the triple products from `apex · m̂_i`, and left the edge normals unnormalised
+    /// (the inside test squares instead): the reference for the new form.
+    fn set_by_old_form(polygon: &mut SphericalPolygon, x: Vec3, vertices: &[Vec3]) -> bool {
+        polygon.points.clear();
+        polygon.edge_normals.clear();
+        polygon.edge_slack.clear();
+        polygon.fan.clear();
+        polygon.fan_usable = 0;
+        polygon.half_solid_angle = 0.0;
+        polygon.solid_angle = 0.0;
+        let n = vertices.len();
+        if !(3..=MAX_CLIP_VERTICES).contains(&n)
+            || !x.is_finite()
+            || vertices.iter().any(|v| !v.is_finite())
+        {
+            return false;
+        }
+        // Set-up runs in f64, where differences of f32 positions are exact: a small polygon far
+        // from `x` or from the world origin keeps its shape, and solid angles near 2π keep their
+        // digits.
+        let xd = x.as_dvec3();
+        let v0 = vertices[0].as_dvec3();
+        // Normal and area from edge vectors (Newell's sum of `v_i × v_{i+1}` cancels far from the
+        // world origin).
+        let twice_area: DVec3 = vertices[1..]
+            .windows(2)
+            .map(|w| (w[0].as_dvec3() - v0).cross(w[1].as_dvec3() - v0))
+            .sum();
+        let twice_area_length = twice_area.length();
+        if !(twice_area_length > 0.0 && twice_area_length.is_finite()) {
+            return false;
+        }
+        let winding_normal = twice_area / twice_area_length;
+        let mut offsets: ArrayVec<DVec3, MAX_CLIP_VERTICES> = ArrayVec::new();
+        offsets.extend(vertices.iter().map(|v| v.as_dvec3() - xd));
+        let mean_offset = offsets.iter().copied().sum::<DVec3>() / n as f64;
+        // Orient the polygon so that its winding normal points away from x: then `r_i × r_{i+1}`
+        // points inside for every edge.
+        let mut away = winding_normal;
+        if away.dot(mean_offset) < 0.0 {
+            away = -away;
+            offsets.reverse();
+        }
+        // One length per vertex: the scale of the edge-on test, and the unit directions.
+        let mut unit: ArrayVec<DVec3, MAX_CLIP_VERTICES> = ArrayVec::new();
+        let mut scale = 0.0f64;
+        for r in &offsets {
+            let length = r.length();
+            scale = scale.max(length);
+            unit.push(*r * length.recip());
+        }
+        let height = away.dot(mean_offset);
+        if height.is_nan() || height <= PLANE_TOLERANCE * scale {
+            return false;
+        }
+        let mut normals: ArrayVec<DVec3, MAX_CLIP_VERTICES> = ArrayVec::new();
+        normals
+            .extend(crate::sampling::cyclic_pairs(&offsets).map(|(r, r_next)| r.cross(r_next - r)));
+        // The fan's apex is the polygon's point nearest x, not a vertex: every polygon point is
+        // then less than 90° from it, whereas from x close to a large polygon the diagonals of
+        // a vertex fan join nearly opposite directions, whose great circles f32 cannot pin down.
+        let apex = nearest_point(&offsets, &normals, height * away).normalize();
+        // The fan's half-angles add as the arguments of their Van Oosterom–Strackee complex
+        // numbers multiply. Every fan triangle is within 90° of the apex, so each half-angle is
+        // below π/2 and their sum, Ω/2, below π; and `|z| <= 4.2`, `|z| >= 1 + v_i·v_{i+1}`,
+        // so the products stay far inside f64's range unless x is within ~1e-10 of the plane
+        // of a polygon of many vertices, when they are rescaled (their arguments stay).
+        let mut cumulative = DVec2::X;
+        for (i, (a, b)) in crate::sampling::cyclic_pairs(&unit).enumerate() {
+            let z = half_solid_angle_phasor(apex, a, b);
+            // Ω_i > MIN ⇔ tan(Ω_i/2) > MIN/2 (to f64 rounding of the tangent).
+            if z.y > 0.0 && z.y > 0.5 * f64::from(MIN_TRIANGLE_SOLID_ANGLE) * z.x {
+                polygon.fan_usable |= 1 << i;
+            }
+            cumulative = complex_mul(cumulative, z);
+            let magnitude = cumulative.x.abs() + cumulative.y.abs();
+            if !(1e-150..=1e150).contains(&magnitude) {
+                cumulative /= magnitude;
+            }
+            polygon.fan.push(cumulative);
+        }
+        let half_solid_angle = cumulative.y.atan2(cumulative.x);
+        let solid_angle = (2.0 * half_solid_angle) as f32;
+        if !(solid_angle > 0.0 && solid_angle.is_finite()) {
+            polygon.fan.clear();
+            polygon.fan_usable = 0;
+            return false;
+        }
+        // The old form: unit normals, normalised in f64 (its slack is ε² for a unit normal).
+        for m in &normals {
+            let unit_normal = m.normalize_or_zero();
+            polygon.edge_normals.push(unit_normal.as_vec3());
+            polygon
+                .edge_slack
+                .push((f64::from(EDGE_TOLERANCE).powi(2) * unit_normal.length_squared()) as f32);
+        }
+        if solid_angle < SMALL_SOLID_ANGLE {
+            polygon.points.extend(offsets.iter().map(|r| r.as_vec3()));
+        } else {
+            polygon.points.extend(unit.iter().map(|d| d.as_vec3()));
+        }
+        polygon.origin = x;
+        polygon.apex = apex.as_vec3();
+        polygon.half_solid_angle = half_solid_angle;
+        polygon.solid_angle = solid_angle;
+        polygon.plane = Plane {
+            n: -away.as_vec3(),
+            d: -away.dot(xd + mean_offset) as f32,
+        };
+        polygon.height = height as f32;
+        polygon.area = (0.5 * twice_area_length) as f32;
+        true
+    }
+
+    #[test]
+    fn set_up_matches_the_old_form() {
+        // Same polygon and point, the old set-up against the new one: solid angle, area,
+        // plane, apex, the fan's cumulative angles, the pdf of random directions (away from
+        // the edges, where a rounding may flip the inside test) and the samples for equal u.
+        let mut rng = Rng::new(41, 0);
+        let (mut compared, mut inside) = (0, 0);
+        for _ in 0..3000 {
+            let (x, vertices) = random_polygon(&mut rng);
+            let mut new = SphericalPolygon::empty();
+            let mut old = SphericalPolygon::empty();
+            let built = new.set(x, &vertices);
+            assert_eq!(built, set_by_old_form(&mut old, x, &vertices));
+            if !built {
+                continue;
+            }
+            let omega = old.solid_angle();
+            assert!(
+                (new.solid_angle() - omega).abs() <= 1e-6 * omega,
+                "{} vs {omega}",
+                new.solid_angle()
+            );
+            assert!((new.area() - old.area()).abs() <= 1e-6 * old.area());
+            assert!(new.plane().n.abs_diff_eq(old.plane().n, 1e-6));
+            assert!((new.height - old.height).abs() <= 1e-6 * old.height);
+            assert!(new.apex.abs_diff_eq(old.apex, 1e-6));
+            assert_eq!(new.points.len(), old.points.len());
+            assert_eq!(new.fan_usable, old.fan_usable);
+            for (a, b) in new.fan.iter().zip(&old.fan) {
+                let (a, b) = (a.y.atan2(a.x), b.y.atan2(b.x));
+                assert!((a - b).abs() <= 1e-7 * (1.0 + b.abs()), "{a} vs {b}");
+            }
+            for _ in 0..20 {
+                let w = random_unit(&mut rng);
+                let near_edge = old.edge_normals.iter().any(|m| m.dot(w).abs() < 1e-5);
+                if !near_edge {
+                    assert_eq!(new.pdf(w) > 0.0, old.pdf(w) > 0.0, "{w}");
+                    inside += (old.pdf(w) > 0.0) as usize;
+                    let (p, q) = (new.pdf(w), old.pdf(w));
+                    assert!((p - q).abs() <= 1e-5 * q, "{p} vs {q}");
+                }
+                let u = rng.uniform2();
+                match (new.sample(u), old.sample(u)) {
+                    (Some((a, pa)), Some((b, pb))) => {
+                        let size = if old.is_area_sampled() {
+                            1e-2
+                        } else {
+                            omega.sqrt()
+                        };
+                        assert!((a - b).length() <= 1e-4 * size, "{a} vs {b} (Ω = {omega})");
+                        assert!((pa - pb).abs() <= 1e-5 * pb);
+                        // Each form's sample is inside its own cone.
+                        assert!(new.pdf(a) > 0.0 && old.pdf(b) > 0.0);
+                    }
+                    (None, None) => {}
+                    (a, b) => panic!("{a:?} vs {b:?}"),
+                }
+                compared += 1;
+            }
+        }
+        assert!(compared > 20_000 && inside > 1000, "{compared} {inside}");
     }
 
     #[test]
