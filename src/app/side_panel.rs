@@ -163,16 +163,18 @@ impl PortalViewApp {
                     ui.allocate_exact_size(egui::vec2(14.0, 14.0), egui::Sense::hover());
                 ui.painter()
                     .rect_filled(rect, 2.0, overlay::region_colour(region));
+                // The share before the name: in a panel narrower than the legend (a width
+                // remembered from an earlier session) the number stays in view. Fixed width
+                // ("100.0%" as wide as " 99.9%"): a share that reaches 100% must not widen
+                // the panel, which would resize the image and restart it.
+                let share = shares.map_or("   –  ".into(), |s| format!("{:>5.1}%", 100.0 * s[k]));
+                ui.label(egui::RichText::new(share).monospace());
                 let technique = Strategy::Antishadow.technique(region);
                 ui.label(format!(
                     "{}: {}",
                     region.name(),
                     technique.map_or("light alone", Technique::name)
                 ));
-                // Fixed width ("100.0%" as wide as " 99.9%"): a share that reaches 100%
-                // must not widen the panel, which would resize the image and restart it.
-                let share = shares.map_or("   –  ".into(), |s| format!("{:>5.1}%", 100.0 * s[k]));
-                ui.label(egui::RichText::new(share).monospace());
                 ui.end_row();
             }
         });
