@@ -16,10 +16,10 @@ use super::antishadow::Region;
 use super::area::{AreaLight, LightPoint};
 use super::portal::Portal;
 use super::punctual::Lamp;
-use super::{LightSet, Strategy, Technique};
+use super::{LightSet, Strategy, Technique, split_share};
 use crate::sampling::polygon::{Plane, Verts, clip_convex_into, convex_hull_in_plane, merge_close};
 use crate::sampling::spherical::SphericalPolygon;
-use crate::sampling::{Distribution1D, pick_by_weight};
+use crate::sampling::Distribution1D;
 
 /// The most portals one shading point can use for one light.
 pub const MAX_TERMS: usize = 8;
@@ -316,9 +316,13 @@ impl LightSampler {
         }
     }
 
-    /// Draws a direction from the mixture: the technique by `u_technique`, the direction by `u`.
-    /// `None` when the drawn share has no technique (a point outside every antishadow draws
-    /// nothing with probability `1 − alpha`) or the draw degenerates; both contribute zero.
+    /// Draws a direction from the mixture: the light technique (the `alpha` share and the
+    /// terms that use it) or another technique by `u.x` ([`split_share`]), that term among
+    /// several by `u_technique`, the direction by the stretched `u`. Where every term uses the
+    /// light technique (antiumbra) the mixture is light sampling and `u` is used as it is: one
+    /// net over the light, not two stretched ones. `None` when the drawn share has no
+    /// technique (a point outside every antishadow draws nothing with probability
+    /// `1 − alpha`) or the draw degenerates; both contribute zero.
     #[inline(always)]
     pub fn sample(
         &self,
@@ -343,13 +347,46 @@ impl LightSampler {
                 )
             })
         };
-        let (technique, (wi, hit, technique_pdf)) = if !ctx.uses_portals || u_technique < ctx.alpha
-        {
+        // The light technique's share: all of it without portals or where every term uses
+        // it; else `alpha` and the light terms' part of the rest (a point outside every
+        // antishadow has no terms: `alpha`, and nothing otherwise).
+        let (mut light_terms, mut other) = (0.0, 0.0);
+        for t in ctx.terms() {
+            *if t.technique == Technique::Light {
+                &mut light_terms
+            } else {
+                &mut other
+            } += t.weight;
+        }
+        let light_share = if !ctx.uses_portals || (other == 0.0 && !ctx.terms().is_empty()) {
+            1.0
+        } else {
+            ctx.alpha + (1.0 - ctx.alpha) * light_terms
+        };
+        let split = if light_share >= 1.0 {
+            (true, u)
+        } else {
+            split_share(u, light_share)
+        };
+        let (technique, (wi, hit, technique_pdf)) = if let (true, u) = split {
             (Technique::Light, from_light(light.sample_point(u)?)?)
         } else {
-            // Rescale the remaining share to pick the portal term.
-            let v = (u_technique - ctx.alpha) / (1.0 - ctx.alpha);
-            let term = pick_by_weight(ctx.terms(), |t| t.weight, v)?;
+            let u = split.1;
+            // The term among the others by weight (the last one if rounding runs past them).
+            let mut v = u_technique * other;
+            let mut picked = None;
+            for t in ctx
+                .terms()
+                .iter()
+                .filter(|t| t.technique != Technique::Light)
+            {
+                picked = Some(t);
+                if v < t.weight {
+                    break;
+                }
+                v -= t.weight;
+            }
+            let term = picked?;
             let portal = &scene.portals()[term.portal];
             let sampled = match term.technique {
                 Technique::Light => from_light(light.sample_point(u)?)?,

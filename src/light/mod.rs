@@ -39,6 +39,24 @@ pub trait LightSet {
     }
 }
 
+/// The largest f32 below 1: a stretched uniform number stays in [0, 1).
+const ONE_BELOW: f32 = 1.0 - f32::EPSILON / 2.0;
+
+/// Picks the light's share (probability `alpha`) or the portals' by `u.x`, and stretches `u.x`
+/// back to a uniform number in [0, 1): `(true, u')` for the light's share. Both shares then
+/// draw from stratified 2D points: under Sobol' points the count of the light share's draws
+/// that reach the light past the occluders is stratified too, where a separate number would
+/// give each share a random subset of the points.
+#[inline(always)]
+pub(crate) fn split_share(u: glam::Vec2, alpha: f32) -> (bool, glam::Vec2) {
+    if u.x < alpha {
+        (true, glam::Vec2::new((u.x / alpha).min(ONE_BELOW), u.y))
+    } else {
+        let x = ((u.x - alpha) / (1.0 - alpha)).min(ONE_BELOW);
+        (false, glam::Vec2::new(x, u.y))
+    }
+}
+
 /// The four strategies of the method: a closed set.
 #[derive(
     Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize, clap::ValueEnum,

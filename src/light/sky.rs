@@ -15,12 +15,9 @@ use glam::{Vec2, Vec3};
 use super::antishadow::Region;
 use super::estimator::MAX_TERMS;
 use super::window::{GuidedBox, Window};
-use super::{LightSet, Strategy, Technique};
+use super::{LightSet, Strategy, Technique, split_share};
 use crate::sampling::pick_by_weight;
 use crate::sampling::spherical::SphericalPolygon;
-
-/// The largest f32 below 1: a stretched uniform number stays in [0, 1).
-const ONE_BELOW: f32 = 1.0 - f32::EPSILON / 2.0;
 
 /// How one direction towards the sky is drawn.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -239,18 +236,18 @@ impl SkySampler {
     ) -> Option<SkySample> {
         let env = scene.environment()?;
         let x = ctx.x;
-        // The share (environment or windows) is picked by `u.x`, which is then stretched back
-        // to [0, 1): both shares draw from stratified 2D points, so that under Sobol' points
-        // the count of draws that find the sun is stratified in each (a separate `u_technique`
-        // would pick a random subset of the points for each share). `u_technique` picks the
-        // window among several.
-        let (technique, drawn, (wi, technique_pdf)) = if !ctx.uses_windows {
-            (SkyTechnique::Environment, None, env.sample(u)?)
-        } else if u.x < ctx.alpha {
-            let u = Vec2::new((u.x / ctx.alpha).min(ONE_BELOW), u.y);
+        // The share (environment or windows) is picked by `u.x` ([`split_share`]), so that
+        // under Sobol' points the count of draws that find the sun is stratified in each.
+        // `u_technique` picks the window among several.
+        let split = if ctx.uses_windows {
+            split_share(u, ctx.alpha)
+        } else {
+            (true, u)
+        };
+        let (technique, drawn, (wi, technique_pdf)) = if let (true, u) = split {
             (SkyTechnique::Environment, None, env.sample(u)?)
         } else {
-            let u = Vec2::new(((u.x - ctx.alpha) / (1.0 - ctx.alpha)).min(ONE_BELOW), u.y);
+            let u = split.1;
             let term = pick_by_weight(&ctx.terms, |t| t.weight, u_technique)?;
             let window = &scene.windows()[term.window];
             let sampled = match term.technique {
