@@ -17,9 +17,9 @@ use super::area::{AreaLight, LightPoint};
 use super::portal::Portal;
 use super::punctual::Lamp;
 use super::{LightSet, Strategy, Technique, split_share};
+use crate::sampling::Distribution1D;
 use crate::sampling::polygon::{Plane, Verts, clip_convex_into, convex_hull_in_plane, merge_close};
 use crate::sampling::spherical::SphericalPolygon;
-use crate::sampling::Distribution1D;
 
 /// The most portals one shading point can use for one light.
 pub const MAX_TERMS: usize = 8;

@@ -133,3 +133,55 @@ impl Technique {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// On a stratified grid of `u.x`, the light's share takes exactly the fraction `alpha`
+    /// (to one grid step), and each share's stretched numbers are stratified again: one per
+    /// interval of their own count, in [0, 1). A stretch that forgot the offset (`u.x / (1 −
+    /// alpha)` for the portals' share) fails the second check.
+    #[test]
+    fn each_share_gets_its_probability_and_stays_stratified() {
+        let n = 10_000;
+        for alpha in [0.0, 0.1, 0.37, 0.9, 1.0] {
+            let mut shares: [Vec<f32>; 2] = [Vec::new(), Vec::new()];
+            for i in 0..n {
+                let u = glam::Vec2::new((i as f32 + 0.5) / n as f32, 0.25);
+                let (light, v) = split_share(u, alpha);
+                assert!((0.0..1.0).contains(&v.x) && v.y == 0.25);
+                shares[usize::from(light)].push(v.x);
+            }
+            let light = shares[1].len() as f32 / n as f32;
+            assert!(
+                (light - alpha).abs() <= 1.0 / n as f32,
+                "alpha {alpha}: {light}"
+            );
+            for share in &mut shares {
+                share.sort_by(f32::total_cmp);
+                let m = share.len() as f32;
+                for (k, x) in share.iter().enumerate() {
+                    assert!(
+                        (x * m - k as f32).abs() <= 1.01,
+                        "alpha {alpha}: {k} at {x}"
+                    );
+                }
+            }
+        }
+        // Negative case: the portals' share stretched without its offset is not stratified.
+        let alpha = 0.37;
+        let wrong: Vec<f32> = (0..n)
+            .map(|i| (i as f32 + 0.5) / n as f32)
+            .filter(|&x| x >= alpha)
+            .map(|x| (x / (1.0 - alpha)).min(ONE_BELOW))
+            .collect();
+        let m = wrong.len() as f32;
+        assert!(
+            wrong
+                .iter()
+                .enumerate()
+                .any(|(k, x)| (x * m - k as f32).abs() > 1.01)
+        );
+    }
+}
