@@ -586,3 +586,84 @@ fn strategies_pick_their_window_techniques() {
             .is_empty()
     );
 }
+
+/// The viewer's edits: a window moved or resized (about its centre) keeps its axes and reuses
+/// its guided table, with no rebuild; a turned one, or one under another environment, gets a
+/// table of its own. With the reused table the moved window's draws still report the density
+/// its pdf evaluates (the draw and the pdf read one table through one window's axes).
+#[test]
+fn a_moved_window_reuses_its_table_and_a_turned_one_does_not() {
+    let scene = Scene::open("window").unwrap();
+    let i = scene
+        .desc
+        .portals
+        .iter()
+        .position(|d| d.is_window())
+        .unwrap();
+    let original = scene.windows.iter().find(|w| w.desc_index == i).unwrap();
+    let centre = original.polygon.centroid();
+    let edited = |m: Mat4| {
+        let mut portals = scene.desc.portals.clone();
+        portals[i].world_from_local = m * portals[i].world_from_local;
+        let (edited, errors) = scene.with_portals_reusing(portals, Some(&scene));
+        assert!(errors.is_empty(), "{errors:?}");
+        edited
+    };
+    let window_of = |s: &Scene| {
+        s.windows
+            .iter()
+            .find(|w| w.desc_index == i)
+            .unwrap()
+            .clone()
+    };
+    let about_centre =
+        |m: Mat4| Mat4::from_translation(centre) * m * Mat4::from_translation(-centre);
+
+    let moved = window_of(&edited(
+        Mat4::from_translation(Vec3::new(0.0, 0.05, 0.0))
+            * about_centre(Mat4::from_scale(Vec3::splat(0.9))),
+    ));
+    assert!(
+        moved.shares_table(original),
+        "a moved window rebuilt its table"
+    );
+    let turned = window_of(&edited(about_centre(Mat4::from_rotation_y(0.05))));
+    assert!(
+        !turned.shares_table(original),
+        "a turned window kept the old table"
+    );
+    assert!(turned.is_guided());
+    // Another environment (an equal one, built again): no sharing across environments.
+    let other = scene
+        .with_environment(scene.desc.environment.clone())
+        .unwrap();
+    let (rebuilt, _) = other.with_portals_reusing(scene.desc.portals.clone(), Some(&scene));
+    assert!(!window_of(&rebuilt).shares_table(original));
+
+    // The moved window's guided draws against its pdf, at points in front of it.
+    let mut rng = Rng::new(41, 0);
+    let (mut checked, mut differing) = (0, 0);
+    for x in points(&moved) {
+        let Some(b) = moved.guided_box(x) else {
+            continue;
+        };
+        for _ in 0..256 {
+            let Some((wi, pdf)) = moved.sample_guided(&b, x, rng.uniform2()) else {
+                continue;
+            };
+            let evaluated = moved.guided_pdf(&b, x, wi);
+            assert!(evaluated > 0.0, "{x}: pdf 0 at a draw");
+            // As in `window_sampled_pdf_equals_evaluated_pdf`: rounding of the direction may
+            // move a draw across a cell edge.
+            if (pdf - evaluated).abs() > 1e-3 * evaluated {
+                differing += 1;
+            }
+            checked += 1;
+        }
+    }
+    assert!(checked > 500, "{checked} draws checked");
+    assert!(
+        differing * 1000 <= checked,
+        "{differing} of {checked} differ"
+    );
+}

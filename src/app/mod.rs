@@ -319,7 +319,7 @@ impl PortalViewApp {
         if let Some(current) = &mut self.current {
             let (rendered, errors) = current
                 .scene
-                .with_portals_lenient(self.editor.portals.clone());
+                .with_portals_reusing(self.editor.portals.clone(), Some(&current.rendered));
             current.rendered = rendered;
             current.portal_errors = errors
                 .into_iter()

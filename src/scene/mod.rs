@@ -471,12 +471,30 @@ impl Scene {
         &self,
         portals: Vec<PortalDesc>,
     ) -> (Scene, Vec<(usize, PortalError)>) {
+        self.with_portals_reusing(portals, None)
+    }
+
+    /// [`Self::with_portals_lenient`], reusing the guided tables of `previous`'s windows (an
+    /// earlier edit of this scene) where a window keeps its axes and the environment is the
+    /// same: moving or resizing a window in the viewer then rebuilds no table.
+    pub fn with_portals_reusing(
+        &self,
+        portals: Vec<PortalDesc>,
+        previous: Option<&Scene>,
+    ) -> (Scene, Vec<(usize, PortalError)>) {
+        let same_environment = |p: &&Scene| match (&p.environment, &self.environment) {
+            (Some(a), Some(b)) => Arc::ptr_eq(a, b),
+            _ => false,
+        };
+        let built = previous
+            .filter(same_environment)
+            .map_or(&[][..], |p| &p.windows);
         let mut valid = Vec::new();
         let mut windows = Vec::new();
         let mut errors = Vec::new();
         for (i, d) in portals.iter().enumerate() {
             if d.is_window() {
-                match Window::new(d, i, self.environment.as_deref()) {
+                match Window::new_reusing(d, i, self.environment.as_deref(), built) {
                     Ok(w) => windows.push(w),
                     Err(e) => errors.push((i, e.into())),
                 }
