@@ -100,7 +100,12 @@ impl PortalViewApp {
                 ui.label("rotation °");
                 ui.horizontal(|ui| {
                     for (v, axis) in [(&mut ex, "x"), (&mut ey, "y"), (&mut ez, "z")] {
+                        // Shown without the "-0.0" that a quaternion's round trip leaves
+                        // (only an edit writes the value back).
                         let mut deg = v.to_degrees();
+                        if deg.abs() < 1e-3 {
+                            deg = 0.0;
+                        }
                         let r = ui.add(
                             egui::DragValue::new(&mut deg)
                                 .speed(0.5)
