@@ -103,6 +103,29 @@ impl LightContext {
     pub fn terms(&self) -> &[PortalTerm] {
         &self.slots[..self.count]
     }
+
+    /// `(λ, w_other)`: the light technique's share of the mixture, and the summed weight of
+    /// the terms that use another technique. `λ` is exactly 1 without portals or where every
+    /// term uses the light technique (antiumbra), `alpha` outside every antishadow (no terms:
+    /// the rest draws nothing), else `alpha + (1 − alpha) · Σ_{light terms} w_j`.
+    #[inline(always)]
+    pub fn light_share(&self) -> (f32, f32) {
+        let (mut light_terms, mut other) = (0.0, 0.0);
+        for t in self.terms() {
+            if t.technique == Technique::Light {
+                light_terms += t.weight;
+            } else {
+                other += t.weight;
+            }
+        }
+        let all_light = other == 0.0 && !self.terms().is_empty();
+        let share = if !self.uses_portals || all_light {
+            1.0
+        } else {
+            self.alpha + (1.0 - self.alpha) * light_terms
+        };
+        (share, other)
+    }
 }
 
 impl Default for LightContext {
@@ -347,59 +370,38 @@ impl LightSampler {
                 )
             })
         };
-        // The light technique's share: all of it without portals or where every term uses
-        // it; else `alpha` and the light terms' part of the rest (a point outside every
-        // antishadow has no terms: `alpha`, and nothing otherwise).
-        let (mut light_terms, mut other) = (0.0, 0.0);
-        for t in ctx.terms() {
-            *if t.technique == Technique::Light {
-                &mut light_terms
-            } else {
-                &mut other
-            } += t.weight;
-        }
-        let light_share = if !ctx.uses_portals || (other == 0.0 && !ctx.terms().is_empty()) {
-            1.0
-        } else {
-            ctx.alpha + (1.0 - ctx.alpha) * light_terms
-        };
-        let split = if light_share >= 1.0 {
-            (true, u)
-        } else {
-            split_share(u, light_share)
-        };
-        let (technique, (wi, hit, technique_pdf)) = if let (true, u) = split {
-            (Technique::Light, from_light(light.sample_point(u)?)?)
-        } else {
-            let u = split.1;
-            // The term among the others by weight (the last one if rounding runs past them).
-            let mut v = u_technique * other;
-            let mut picked = None;
-            for t in ctx
-                .terms()
-                .iter()
-                .filter(|t| t.technique != Technique::Light)
-            {
-                picked = Some(t);
-                if v < t.weight {
-                    break;
+        let (light_share, other) = ctx.light_share();
+        let (term, u) = match split_share(u, light_share) {
+            (true, u) => (None, u),
+            (false, u) => {
+                // The term among the others by weight (the last one if rounding runs past them).
+                let mut v = u_technique * other;
+                let mut picked = None;
+                for t in ctx
+                    .terms()
+                    .iter()
+                    .filter(|t| t.technique != Technique::Light)
+                {
+                    picked = Some(t);
+                    if v < t.weight {
+                        break;
+                    }
+                    v -= t.weight;
                 }
-                v -= t.weight;
+                (Some(picked?), u)
             }
-            let term = picked?;
-            let portal = &scene.portals()[term.portal];
-            let sampled = match term.technique {
-                Technique::Light => from_light(light.sample_point(u)?)?,
-                Technique::Portal => {
-                    let (wi, pdf) = sample_portal(portal, x, u)?;
-                    (wi, self.light_hit(scene, ctx.light, x, wi), pdf)
-                }
-                Technique::Projection => {
-                    let (wi, pdf) = term.projection()?.sample(u)?;
-                    (wi, self.light_hit(scene, ctx.light, x, wi), pdf)
-                }
-            };
-            (term.technique, sampled)
+        };
+        let technique = term.map_or(Technique::Light, |t| t.technique);
+        let (wi, hit, technique_pdf) = match (technique, term) {
+            (Technique::Portal, Some(t)) => {
+                let (wi, pdf) = sample_portal(&scene.portals()[t.portal], x, u)?;
+                (wi, self.light_hit(scene, ctx.light, x, wi), pdf)
+            }
+            (Technique::Projection, Some(t)) => {
+                let (wi, pdf) = t.projection()?.sample(u)?;
+                (wi, self.light_hit(scene, ctx.light, x, wi), pdf)
+            }
+            _ => from_light(light.sample_point(u)?)?,
         };
         let le = hit.map_or(Vec3::ZERO, |(y, _)| light.emitted(y.n, -wi));
         // Without portals the mixture is light sampling alone, whose density is in hand.
@@ -462,18 +464,7 @@ impl LightSampler {
         let hit = self.light_hit(scene, ctx.light, ctx.x, wi);
         let first = self.light_pdf(scene, ctx.light, wi, hit);
         let beyond = (scene.lights()[ctx.light].direction_pdf(ctx.x, wi) - first).max(0.0);
-        let light_share = if ctx.uses_portals {
-            let light_terms: f32 = ctx
-                .terms()
-                .iter()
-                .filter(|t| t.technique == Technique::Light)
-                .map(|t| t.weight)
-                .sum();
-            ctx.alpha + (1.0 - ctx.alpha) * light_terms
-        } else {
-            1.0
-        };
-        self.pdf(scene, ctx, wi, hit) + light_share * beyond
+        self.pdf(scene, ctx, wi, hit) + ctx.light_share().0 * beyond
     }
 
     /// The light technique's pdf `p_L(wi)` for a direction whose light hit is `hit`.

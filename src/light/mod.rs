@@ -46,7 +46,7 @@ const ONE_BELOW: f32 = 1.0 - f32::EPSILON / 2.0;
 /// back to a uniform number in [0, 1): `(true, u')` for the light's share. Both shares then
 /// draw from stratified 2D points: under Sobol' points the count of the light share's draws
 /// that reach the light past the occluders is stratified too, where a separate number would
-/// give each share a random subset of the points.
+/// give each share a random subset of the points. At `alpha = 1` `u` comes back as it is.
 #[inline(always)]
 pub(crate) fn split_share(u: glam::Vec2, alpha: f32) -> (bool, glam::Vec2) {
     if u.x < alpha {

@@ -239,24 +239,20 @@ impl SkySampler {
         // The share (environment or windows) is picked by `u.x` ([`split_share`]), so that
         // under Sobol' points the count of draws that find the sun is stratified in each.
         // `u_technique` picks the window among several.
-        let split = if ctx.uses_windows {
-            split_share(u, ctx.alpha)
-        } else {
-            (true, u)
-        };
-        let (technique, drawn, (wi, technique_pdf)) = if let (true, u) = split {
-            (SkyTechnique::Environment, None, env.sample(u)?)
-        } else {
-            let u = split.1;
-            let term = pick_by_weight(&ctx.terms, |t| t.weight, u_technique)?;
-            let window = &scene.windows()[term.window];
-            let sampled = match term.technique {
-                SkyTechnique::Environment => env.sample(u)?,
-                SkyTechnique::WindowArea => window.sample_area(x, u)?,
-                SkyTechnique::SolidAngle => term.spherical.as_ref()?.sample(u)?,
-                SkyTechnique::Guided => window.sample_guided(term.guided.as_ref()?, x, u)?,
-            };
-            (term.technique, Some(term.window), sampled)
+        let environment_share = if ctx.uses_windows { ctx.alpha } else { 1.0 };
+        let (technique, drawn, (wi, technique_pdf)) = match split_share(u, environment_share) {
+            (true, u) => (SkyTechnique::Environment, None, env.sample(u)?),
+            (false, u) => {
+                let term = pick_by_weight(&ctx.terms, |t| t.weight, u_technique)?;
+                let window = &scene.windows()[term.window];
+                let sampled = match term.technique {
+                    SkyTechnique::Environment => env.sample(u)?,
+                    SkyTechnique::WindowArea => window.sample_area(x, u)?,
+                    SkyTechnique::SolidAngle => term.spherical.as_ref()?.sample(u)?,
+                    SkyTechnique::Guided => window.sample_guided(term.guided.as_ref()?, x, u)?,
+                };
+                (term.technique, Some(term.window), sampled)
+            }
         };
         // One pixel lookup gives the radiance and the environment's density.
         let (le, p_env) = env.radiance_pdf(wi);
