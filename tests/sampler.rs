@@ -205,6 +205,7 @@ fn render_film(scene: &Scene, sampler: SamplerKind, seed: u64, spp: u32) -> Film
             max_depth: 1,
             seed,
             sampler,
+            ..RenderSettings::default()
         },
     );
     render(&integrator, 48, 36, spp).0

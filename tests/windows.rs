@@ -414,6 +414,7 @@ fn render_image(
             seed,
             // Block z-scores rest on per-pixel sample variance: independent numbers.
             sampler: portalview::sampling::SamplerKind::Independent,
+            ..RenderSettings::default()
         },
     );
     let (film, stats) = render(&integrator, 48, 36, spp);

@@ -28,7 +28,7 @@ use std::time::{Duration, Instant};
 use crate::asset::desc::PortalDesc;
 use crate::asset::environment::EnvironmentOverrides;
 use crate::camera::Camera;
-use crate::light::Strategy;
+use crate::light::{Mixture, Strategy};
 use crate::render::integrator::RenderSettings;
 use crate::render::worker::{Frame, RenderHandle, RenderRequest};
 use crate::sampling::SamplerKind;
@@ -285,6 +285,7 @@ impl PortalViewApp {
             max_depth: self.settings.max_depth,
             seed: 0,
             sampler: self.settings.sampler,
+            mixture: Mixture::default(),
         }
     }
 

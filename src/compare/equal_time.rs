@@ -7,7 +7,7 @@ use std::time::Instant;
 
 use super::metrics::{mse, mse_above_floor, relmse};
 use super::reference::{ImageSpec, Reference, ReferenceInfo, ReferenceOrigin};
-use crate::light::Strategy;
+use crate::light::{Mixture, Strategy};
 use crate::render::film::Film;
 use crate::render::integrator::{Integrator, RenderSettings};
 use crate::render::stats::Stats;
@@ -206,6 +206,7 @@ pub fn compare(
         max_depth: image.max_depth,
         seed: settings.seed,
         sampler: settings.sampler,
+        mixture: Mixture::default(),
     };
     let mut schedule = EqualTime::new(
         scene.clone(),

@@ -10,7 +10,7 @@ use std::sync::atomic::AtomicBool;
 use std::time::Instant;
 
 use super::metrics::Convergence;
-use crate::light::Strategy;
+use crate::light::{Mixture, Strategy};
 use crate::render::film::Film;
 use crate::render::integrator::{Integrator, RenderSettings};
 use crate::render::{Cancelled, render_pass, tonemap};
@@ -261,6 +261,7 @@ pub fn render_reference(
         // Its noise floor comes from the per-pixel sample variance, which is an unbiased
         // estimate only for independent samples.
         sampler: SamplerKind::Independent,
+        mixture: Mixture::default(),
     };
     let integrator = Integrator::new(scene, settings);
     let mut film = Film::new(image.width, image.height);

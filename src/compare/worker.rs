@@ -15,7 +15,7 @@ use crate::compare::{
     ConvergencePoint, EqualTime, ImageSpec, Reference, ReferenceBudget, ReferenceOrigin, cache_key,
     find_cached_reference, load_reference, mse, relmse, render_reference, store_reference,
 };
-use crate::light::Strategy;
+use crate::light::{Mixture, Strategy};
 use crate::render::Cancelled;
 use crate::render::integrator::RenderSettings;
 use crate::render::shell::{Outbox, Work, WorkerHandle};
@@ -335,6 +335,7 @@ impl CompareWork {
                         max_depth: request.image.max_depth,
                         seed: request.seed,
                         sampler: request.sampler,
+                        mixture: Mixture::default(),
                     };
                     let schedule = EqualTime::new(
                         request.scene.clone(),

@@ -126,6 +126,15 @@ impl LightContext {
         };
         (share, other)
     }
+
+    /// Whether both shares of the mixture draw something here: the light technique's share
+    /// `λ` in (0, 1) and terms of another technique present (antipenumbra, antiantumbra, or
+    /// a mix of regions). There [`Mixture::EachShare`](super::Mixture) draws from each.
+    #[inline(always)]
+    pub fn both_shares_draw(&self) -> bool {
+        let (light_share, other) = self.light_share();
+        self.uses_portals && other > 0.0 && light_share > 0.0 && light_share < 1.0
+    }
 }
 
 impl Default for LightContext {
@@ -354,6 +363,26 @@ impl LightSampler {
         u_technique: f32,
         u: Vec2,
     ) -> Option<LightSample> {
+        let (light_share, _) = ctx.light_share();
+        let (from_light_share, u) = split_share(u, light_share);
+        self.sample_share(scene, ctx, from_light_share, u_technique, u)
+    }
+
+    /// A direction from one share of the mixture with `u` as it is: the light technique
+    /// (`from_light_share`) or the other techniques' terms, picked among them by weight with
+    /// `u_technique`. Its `pdf` is the whole mixture's `q`, as for [`Self::sample`]. Drawing
+    /// from each share and weighting each sample by its share (`λ`, `1 − λ`) estimates the
+    /// same integral as one draw of [`Self::sample`] (`docs/method.md` §5). `None` when the
+    /// share has no technique or the draw degenerates.
+    #[inline(always)]
+    pub fn sample_share(
+        &self,
+        scene: &impl LightSet,
+        ctx: &LightContext,
+        from_light_share: bool,
+        u_technique: f32,
+        u: Vec2,
+    ) -> Option<LightSample> {
         let light = &scene.lights()[ctx.light];
         let x = ctx.x;
         // Each route returns the direction, the light hit, and the technique's density as the
@@ -370,26 +399,25 @@ impl LightSampler {
                 )
             })
         };
-        let (light_share, other) = ctx.light_share();
-        let (term, u) = match split_share(u, light_share) {
-            (true, u) => (None, u),
-            (false, u) => {
-                // The term among the others by weight (the last one if rounding runs past them).
-                let mut v = u_technique * other;
-                let mut picked = None;
-                for t in ctx
-                    .terms()
-                    .iter()
-                    .filter(|t| t.technique != Technique::Light)
-                {
-                    picked = Some(t);
-                    if v < t.weight {
-                        break;
-                    }
-                    v -= t.weight;
+        let (_, other) = ctx.light_share();
+        let term = if from_light_share {
+            None
+        } else {
+            // The term among the others by weight (the last one if rounding runs past them).
+            let mut v = u_technique * other;
+            let mut picked = None;
+            for t in ctx
+                .terms()
+                .iter()
+                .filter(|t| t.technique != Technique::Light)
+            {
+                picked = Some(t);
+                if v < t.weight {
+                    break;
                 }
-                (Some(picked?), u)
+                v -= t.weight;
             }
+            Some(picked?)
         };
         let technique = term.map_or(Technique::Light, |t| t.technique);
         let (wi, hit, technique_pdf) = match (technique, term) {

@@ -111,6 +111,31 @@ impl Strategy {
     }
 }
 
+/// How a shading point draws from the mixture of the light technique's share (`alpha` and
+/// the terms that use the light technique) and the other techniques' share
+/// (`docs/method.md` §5). Both are exactly unbiased with the mixture's pdf.
+#[derive(
+    Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize, clap::ValueEnum,
+)]
+pub enum Mixture {
+    /// Where both shares draw something, one sample from each, weighted by its share
+    /// (Veach's multi-sample model, balance heuristic); elsewhere one sample, as `one-sample`.
+    #[default]
+    EachShare,
+    /// One sample per shading point: the share picked by its probability (the thesis's
+    /// single-sample estimator).
+    OneSample,
+}
+
+impl Mixture {
+    pub fn name(self) -> &'static str {
+        match self {
+            Mixture::EachShare => "each-share",
+            Mixture::OneSample => "one-sample",
+        }
+    }
+}
+
 /// How one direction towards a light is drawn.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Technique {

@@ -9,7 +9,7 @@ use crate::asset::desc::AlphaMode;
 use crate::light::area::LightPoint;
 use crate::light::estimator::{LightContext, LightSample, LightSampler, PickedLight};
 use crate::light::sky::{SkyContext, SkySampler};
-use crate::light::{LightSet, Strategy, Technique};
+use crate::light::{LightSet, Mixture, Strategy, Technique};
 use crate::material::Material;
 use crate::sampling::{Frame, Sampler, SamplerKind, power_heuristic};
 use crate::scene::bvh::Tracer;
@@ -27,6 +27,8 @@ pub struct RenderSettings {
     pub seed: u64,
     /// Where the random numbers come from.
     pub sampler: SamplerKind,
+    /// One sample of the light mixture per shading point, or one from each share.
+    pub mixture: Mixture,
 }
 
 impl Default for RenderSettings {
@@ -37,6 +39,7 @@ impl Default for RenderSettings {
             max_depth: 1,
             seed: 0,
             sampler: SamplerKind::default(),
+            mixture: Mixture::default(),
         }
     }
 }
@@ -465,7 +468,27 @@ impl<'a> Integrator<'a> {
         let timed = stats.shading_points().is_multiple_of(TIMING_STRIDE);
         let start = timed.then(Instant::now);
         self.lights.fill_context(self.scene, light, s.x, ctx);
-        let sample = self.lights.sample(self.scene, ctx, u_technique, u);
+        // Where both shares draw, one sample from each, weighted by its share `λ` or `1 − λ`
+        // (the same `u` for both: each sample's expectation is its share of the integral
+        // whatever their correlation); else one sample of the mixture.
+        let each_share = self.settings.mixture == Mixture::EachShare && ctx.both_shares_draw();
+        let (samples, shares) = if each_share {
+            let light_share = ctx.light_share().0;
+            (
+                [
+                    self.lights
+                        .sample_share(self.scene, ctx, true, u_technique, u),
+                    self.lights
+                        .sample_share(self.scene, ctx, false, u_technique, u),
+                ],
+                [light_share, 1.0 - light_share],
+            )
+        } else {
+            (
+                [self.lights.sample(self.scene, ctx, u_technique, u), None],
+                [1.0, 0.0],
+            )
+        };
         if let Some(start) = start {
             let spent = start.elapsed().saturating_sub(timer_overhead());
             stats.sampling_ns += spent.as_nanos() as u64 * TIMING_STRIDE;
@@ -475,16 +498,17 @@ impl<'a> Integrator<'a> {
         } else {
             stats.no_portal += 1;
         }
-        let l = match &sample {
-            Some(sample) => {
-                stats.count_technique(sample.technique);
-                self.direct(tracer, sample, light, light_prob, s, stats)
+        let mut l = Vec3::ZERO;
+        for (k, sample) in samples.iter().enumerate() {
+            match sample {
+                Some(sample) => {
+                    stats.count_technique(sample.technique);
+                    l += shares[k] * self.direct(tracer, sample, light, light_prob, s, stats);
+                }
+                None if k == 0 || each_share => stats.empty_samples += 1,
+                None => {}
             }
-            None => {
-                stats.empty_samples += 1;
-                Vec3::ZERO
-            }
-        };
+        }
         Some(Direct {
             l,
             context_filled: true,

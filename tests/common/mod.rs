@@ -267,15 +267,24 @@ pub fn floor_radiance(
     n: usize,
     seed: u64,
 ) -> (f64, f64) {
-    let integrator = Integrator::new(
-        scene,
-        RenderSettings {
-            strategy,
-            alpha,
-            seed,
-            ..RenderSettings::default()
-        },
-    );
+    let settings = RenderSettings {
+        strategy,
+        alpha,
+        seed,
+        ..RenderSettings::default()
+    };
+    floor_radiance_with(scene, settings, x, n)
+}
+
+/// [`floor_radiance`] with all of the renderer's settings given (its seed among them).
+pub fn floor_radiance_with(
+    scene: &Scene,
+    settings: RenderSettings,
+    x: Vec3,
+    n: usize,
+) -> (f64, f64) {
+    let seed = settings.seed;
+    let integrator = Integrator::new(scene, settings);
     let eye = x + Vec3::new(0.3, 1.0, 0.2);
     let mut stats = Stats::default();
     let values: Vec<f64> = (0..n)
