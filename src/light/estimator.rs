@@ -132,8 +132,11 @@ impl LightContext {
     /// a mix of regions). There [`Mixture::EachShare`](super::Mixture) draws from each.
     #[inline(always)]
     pub fn both_shares_draw(&self) -> bool {
+        if !self.uses_portals {
+            return false;
+        }
         let (light_share, other) = self.light_share();
-        self.uses_portals && other > 0.0 && light_share > 0.0 && light_share < 1.0
+        other > 0.0 && light_share > 0.0 && light_share < 1.0
     }
 }
 
@@ -363,9 +366,9 @@ impl LightSampler {
         u_technique: f32,
         u: Vec2,
     ) -> Option<LightSample> {
-        let (light_share, _) = ctx.light_share();
+        let (light_share, other) = ctx.light_share();
         let (from_light_share, u) = split_share(u, light_share);
-        self.sample_share(scene, ctx, from_light_share, u_technique, u)
+        self.draw_share(scene, ctx, (from_light_share, other), u_technique, u)
     }
 
     /// A direction from one share of the mixture with `u` as it is: the light technique
@@ -380,6 +383,20 @@ impl LightSampler {
         scene: &impl LightSet,
         ctx: &LightContext,
         from_light_share: bool,
+        u_technique: f32,
+        u: Vec2,
+    ) -> Option<LightSample> {
+        let other = ctx.light_share().1;
+        self.draw_share(scene, ctx, (from_light_share, other), u_technique, u)
+    }
+
+    /// [`Self::sample_share`] given the other techniques' summed weight `other`.
+    #[inline(always)]
+    fn draw_share(
+        &self,
+        scene: &impl LightSet,
+        ctx: &LightContext,
+        (from_light_share, other): (bool, f32),
         u_technique: f32,
         u: Vec2,
     ) -> Option<LightSample> {
@@ -399,7 +416,6 @@ impl LightSampler {
                 )
             })
         };
-        let (_, other) = ctx.light_share();
         let term = if from_light_share {
             None
         } else {

@@ -468,27 +468,22 @@ impl<'a> Integrator<'a> {
         let timed = stats.shading_points().is_multiple_of(TIMING_STRIDE);
         let start = timed.then(Instant::now);
         self.lights.fill_context(self.scene, light, s.x, ctx);
-        // Where both shares draw, one sample from each, weighted by its share `λ` or `1 − λ`
-        // (the same `u` for both: each sample's expectation is its share of the integral
-        // whatever their correlation); else one sample of the mixture.
-        let each_share = self.settings.mixture == Mixture::EachShare && ctx.both_shares_draw();
-        let (samples, shares) = if each_share {
-            let light_share = ctx.light_share().0;
-            (
-                [
-                    self.lights
-                        .sample_share(self.scene, ctx, true, u_technique, u),
-                    self.lights
-                        .sample_share(self.scene, ctx, false, u_technique, u),
-                ],
-                [light_share, 1.0 - light_share],
-            )
-        } else {
-            (
-                [self.lights.sample(self.scene, ctx, u_technique, u), None],
-                [1.0, 0.0],
-            )
-        };
+        if self.settings.mixture == Mixture::EachShare && ctx.both_shares_draw() {
+            let l = self.each_share_direct(
+                tracer,
+                (light, light_prob),
+                s,
+                (u_technique, u),
+                ctx,
+                start,
+                stats,
+            );
+            return Some(Direct {
+                l,
+                context_filled: true,
+            });
+        }
+        let sample = self.lights.sample(self.scene, ctx, u_technique, u);
         if let Some(start) = start {
             let spent = start.elapsed().saturating_sub(timer_overhead());
             stats.sampling_ns += spent.as_nanos() as u64 * TIMING_STRIDE;
@@ -498,21 +493,61 @@ impl<'a> Integrator<'a> {
         } else {
             stats.no_portal += 1;
         }
-        let mut l = Vec3::ZERO;
-        for (k, sample) in samples.iter().enumerate() {
-            match sample {
-                Some(sample) => {
-                    stats.count_technique(sample.technique);
-                    l += shares[k] * self.direct(tracer, sample, light, light_prob, s, stats);
-                }
-                None if k == 0 || each_share => stats.empty_samples += 1,
-                None => {}
+        let l = match &sample {
+            Some(sample) => {
+                stats.count_technique(sample.technique);
+                self.direct(tracer, sample, light, light_prob, s, stats)
             }
-        }
+            None => {
+                stats.empty_samples += 1;
+                Vec3::ZERO
+            }
+        };
         Some(Direct {
             l,
             context_filled: true,
         })
+    }
+
+    /// Where both shares of the light mixture draw (`Mixture::EachShare`): one sample from
+    /// each, with the same `u`, weighted by its share `λ` or `1 − λ` (`docs/method.md` §5;
+    /// each sample's expectation is its share of the integral whatever their correlation).
+    /// `start` is the light-sampling timer, stopped here after both draws.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn each_share_direct<T: Tracer>(
+        &self,
+        tracer: &T,
+        (light, light_prob): (usize, f32),
+        s: &Shading,
+        (u_technique, u): (f32, glam::Vec2),
+        ctx: &LightContext,
+        start: Option<Instant>,
+        stats: &mut Stats,
+    ) -> Vec3 {
+        let light_share = ctx.light_share().0;
+        let from_light = self
+            .lights
+            .sample_share(self.scene, ctx, true, u_technique, u);
+        let from_portals = self
+            .lights
+            .sample_share(self.scene, ctx, false, u_technique, u);
+        if let Some(start) = start {
+            let spent = start.elapsed().saturating_sub(timer_overhead());
+            stats.sampling_ns += spent.as_nanos() as u64 * TIMING_STRIDE;
+        }
+        stats.count_region(ctx.region);
+        let mut l = Vec3::ZERO;
+        for (sample, share) in [(from_light, light_share), (from_portals, 1.0 - light_share)] {
+            match sample {
+                Some(sample) => {
+                    stats.count_technique(sample.technique);
+                    l += share * self.direct(tracer, &sample, light, light_prob, s, stats);
+                }
+                None => stats.empty_samples += 1,
+            }
+        }
+        l
     }
 
     /// A lamp's contribution, `f · E · cos θ / P(lamp)` with `E` its irradiance at normal
