@@ -1,8 +1,12 @@
-//! The estimator for one light (`docs/method.md` §5): a single-sample
-//! mixture of light sampling (probability `alpha`) and one technique per portal, always
-//! weighted by the pdf of the whole mixture
+//! The estimator for one light (`docs/method.md` §5): a mixture of light sampling
+//! (probability `alpha`) and one technique per portal, always weighted by the pdf of the whole
+//! mixture
 //!
-//! `q(ω) = alpha · p_L(ω) + (1 − alpha) · Σ_j w_j(x) · p_{s_j}(ω | x)`.
+//! `q(ω) = alpha · p_L(ω) + (1 − alpha) · Σ_j w_j(x) · p_{s_j}(ω | x)`,
+//!
+//! drawn once ([`LightSampler::sample`], the thesis's single sample) or once from each of its
+//! two shares, the light technique's and the others' ([`LightSampler::sample_share`], each
+//! sample then weighted by its share: `Mixture::EachShare`).
 //!
 //! Choices made here: a light's alpha is the largest `portal_light_probability` of its portals
 //! (or the user's override); the weights `w_j` are proportional to the solid angle of the light
