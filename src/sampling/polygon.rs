@@ -468,40 +468,30 @@ const ONE_BELOW: f32 = 1.0 - f32::EPSILON / 2.0;
 /// inside planes `0..k` and outside plane `k`; the last piece is inside all of them.
 #[inline(always)]
 pub fn sample_polygon_area_ordered(vertices: &[Vec3], cut: &[Plane], u: Vec2) -> Vec3 {
-    let mut areas: ArrayVec<f32, { MAX_POLYGON_VERTICES + 2 }> = ArrayVec::new();
+    // Walk the pieces in order, each one's area the difference of the inside's before and
+    // after its plane, and stop at the one `u.x` falls in (most draws stop early).
+    let mut target = u.x * polygon_area(vertices);
     let mut inside: Verts = Verts::new();
     inside.extend(vertices.iter().copied());
+    let mut area = polygon_area(&inside);
     for plane in cut {
-        areas.push(polygon_area(&clip_by_plane(&inside, plane.flipped())));
-        inside = clip_by_plane(&inside, *plane);
-    }
-    areas.push(polygon_area(&inside));
-    // The piece by area (the last one with area if rounding runs past them all).
-    let total: f32 = areas.iter().sum();
-    let mut target = u.x * total;
-    let mut chosen = None;
-    for (k, &a) in areas.iter().enumerate() {
-        if a > 0.0 {
-            chosen = Some((k, target, a));
-            if target < a {
-                break;
-            }
+        let next = clip_by_plane(&inside, *plane);
+        let next_area = polygon_area(&next);
+        let a = area - next_area;
+        if a > 0.0 && target < a {
+            let piece = clip_by_plane(&inside, plane.flipped());
+            let ux = (target / a).clamp(0.0, ONE_BELOW);
+            return sample_polygon_area(&piece, Vec2::new(ux, u.y));
         }
-        target -= a;
+        target -= a.max(0.0);
+        (inside, area) = (next, next_area);
     }
-    let Some((k, target, a)) = chosen else {
+    if area <= 0.0 {
+        // Rounding ran past the last piece with area: the plain draw, same density.
         return sample_polygon_area(vertices, u);
-    };
-    let mut piece: Verts = Verts::new();
-    piece.extend(vertices.iter().copied());
-    for plane in &cut[..k] {
-        piece = clip_by_plane(&piece, *plane);
     }
-    if let Some(plane) = cut.get(k) {
-        piece = clip_by_plane(&piece, plane.flipped());
-    }
-    let ux = (target / a).clamp(0.0, ONE_BELOW);
-    sample_polygon_area(&piece, Vec2::new(ux, u.y))
+    let ux = (target / area).clamp(0.0, ONE_BELOW);
+    sample_polygon_area(&inside, Vec2::new(ux, u.y))
 }
 
 /// The area of a (possibly degenerate) convex polygon.
