@@ -472,7 +472,8 @@ fn an_environment_edit_builds_in_the_background_and_saves() {
                 == Some(&portalview::asset::environment::EnvMap::Constant(Vec3::ONE))
     });
     assert!(h.state().rendered().unwrap().environment.is_some());
-    // Off, then save at once (before or after the quick build is taken): the file has no sky.
+    // Off, then save at once (before or after the quick build is taken; saving writes the
+    // edited environment either way): the file has no sky.
     h.get_by_label("Off").click();
     h.step();
     h.get_by_label("File").click();
