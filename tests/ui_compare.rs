@@ -111,6 +111,13 @@ fn comparison_renders_a_reference_and_every_strategy_for_equal_time() {
         assert!(boxes >= 3, "{} in {boxes} legends and controls", s.name());
     }
     assert!(h.query_by_label("eff. vs light").is_some());
+    // Subtracting the reference's noise floor relabels the error columns.
+    assert!(h.query_by_label("MSE − floor").is_none());
+    h.get_by_role_and_label(Role::CheckBox, "subtract the reference's noise floor")
+        .click();
+    h.run_steps(2);
+    assert!(h.query_by_label("MSE − floor").is_some());
+    assert!(h.query_by_label("relMSE − floor").is_some());
     // A second visit to the same scene, camera and size has its reference at once.
     let pixels = reference.pixels.clone();
     h.get_by_role_and_label(Role::Button, "Render").click();

@@ -289,21 +289,23 @@ fn environment_panel_turns_the_sky_off_and_on_and_saves() {
     };
     assert!(mean(&lit) > 0.0);
 
-    // Off: the room goes black.
+    // Off: the room goes black, once the builder has made the scene without a sky.
     h.get_by_label("Off").click();
     h.run_steps(2);
-    assert!(h.state().scene().unwrap().environment.is_none());
+    step_until(&mut h, "the sky off", |a| {
+        !a.is_building() && a.scene().unwrap().environment.is_none()
+    });
     step_until(&mut h, "dark frame", |a| {
         newer_full_frame(a, lit.generation)
     });
     assert_eq!(mean(h.state().frame().unwrap()), 0.0);
 
     // A constant sky, then a stronger one: brighter.
+    let generation = h.state().frame().unwrap().generation;
     h.get_by_label("Constant").click();
     h.run_steps(2);
-    let generation = h.state().frame().unwrap().generation;
     step_until(&mut h, "constant frame", |a| {
-        newer_full_frame(a, generation)
+        !a.is_building() && newer_full_frame(a, generation)
     });
     let constant = mean(h.state().frame().unwrap());
     assert!(constant > 0.0);
@@ -339,4 +341,150 @@ fn environment_panel_turns_the_sky_off_and_on_and_saves() {
         .world_triangles();
     assert!(moved[0][0].abs_diff_eq(original[0][0] + Vec3::new(0.1, 0.0, 0.0), 1e-4));
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// `window` copied into a fresh folder (saving writes into it): the harness on it.
+fn harness_on_copy(tag: &str) -> (Harness<'static, PortalViewApp>, std::path::PathBuf) {
+    let dir = std::env::temp_dir().join(format!("portalview-ui-{tag}-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    for file in ["window.glb", "window_environment.hdr"] {
+        std::fs::copy(
+            format!("{}/assets/{file}", env!("CARGO_MANIFEST_DIR")),
+            dir.join(file),
+        )
+        .unwrap();
+    }
+    let path = dir.join("window.glb");
+    (harness(path.to_str().unwrap()), path)
+}
+
+/// The window turned by `angle` about the vertical through its centre (other axes, so its
+/// table cannot be reused), as an undoable edit of the editor.
+fn turn_window(app: &mut PortalViewApp, angle: f32) {
+    let mut pose = app.editor.pose(0).unwrap();
+    app.editor.checkpoint();
+    pose.rotation = glam::Quat::from_rotation_y(angle) * pose.rotation;
+    app.editor.set_pose(0, pose);
+}
+
+/// A turned window needs a new guided table: the edit returns at once with the window in the
+/// rendered scene but without its table (sampled by solid angle meanwhile), the render goes on,
+/// and the built scene arrives from the background and is rendered. Undo works the same way.
+/// A save made while a table builds writes the latest edit.
+#[test]
+fn a_turned_window_renders_at_once_and_its_table_arrives_later() {
+    let _serial = serial();
+    let (mut h, path) = harness_on_copy("turn");
+    step_until(&mut h, "first frame", has_full_frame);
+    let generation = h.state().frame().unwrap().generation;
+    assert!(h.state().rendered().unwrap().windows[0].is_guided());
+
+    // No table is built on the UI thread: the edit is rendered without it.
+    let app = h.state_mut();
+    turn_window(app, 0.1);
+    app.apply_portal_edit();
+    assert!(app.is_building());
+    let rendered = app.rendered().unwrap();
+    assert!(rendered.lacks_tables());
+    let turned = polygon(&app.editor.portals[0]);
+    assert!(
+        rendered.windows[0]
+            .polygon
+            .normal()
+            .abs_diff_eq(turned.normal(), 1e-5)
+    );
+    h.step();
+    if h.state().is_building() {
+        h.get_by_label_contains("building window tables");
+    }
+    step_until(&mut h, "the window's table", |a| !a.is_building());
+    assert!(!h.state().rendered().unwrap().lacks_tables());
+    assert!(h.state().rendered().unwrap().windows[0].is_guided());
+    step_until(&mut h, "a frame of the built scene", |a| {
+        newer_full_frame(a, generation)
+    });
+
+    // Undo: the original axes again, whose table was dropped: built again in the background.
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Z);
+    h.run_steps(2);
+    step_until(&mut h, "the undone window's table", |a| {
+        !a.is_building() && !a.rendered().unwrap().lacks_tables()
+    });
+    assert_eq!(
+        h.state().editor.portals,
+        h.state().scene().unwrap().desc.portals
+    );
+
+    // Turn it further and save at once, while its table builds: the file has the turn.
+    let app = h.state_mut();
+    turn_window(app, 0.2);
+    app.apply_portal_edit();
+    assert!(app.is_building());
+    let edited = app.editor.portals[0].world_triangles();
+    h.get_by_label("File").click();
+    h.run_steps(2);
+    h.get_by_label("Save portals").click();
+    h.run_steps(2);
+    step_until(&mut h, "saved", |a| !a.is_busy());
+    assert_eq!(
+        h.state().message(),
+        Some(&*format!("saved {}", path.display()))
+    );
+    let saved = portalview::scene::Scene::load(&path).unwrap().desc.portals[0].world_triangles();
+    for (a, b) in saved.iter().flatten().zip(edited.iter().flatten()) {
+        assert!(a.abs_diff_eq(*b, 1e-4), "saved {a}, edited {b}");
+    }
+    // The file read back is on screen, with its table.
+    assert!(!h.state().is_building());
+    assert!(!h.state().rendered().unwrap().lacks_tables());
+    if let Some(dir) = path.parent() {
+        let _ = std::fs::remove_dir_all(dir);
+    }
+}
+
+/// An environment edit builds the environment and its windows' tables in the background while
+/// the old scene renders; a save made meanwhile writes the new environment.
+#[test]
+fn an_environment_edit_builds_in_the_background_and_saves() {
+    let _serial = serial();
+    let (mut h, path) = harness_on_copy("env");
+    step_until(&mut h, "first frame", has_full_frame);
+    let before = h.state().scene().unwrap().desc.environment.clone().unwrap();
+    assert!(matches!(
+        before.map,
+        portalview::asset::environment::EnvMap::Image { .. }
+    ));
+    // A constant sky: while it builds, the scene keeps the old one.
+    h.get_by_label("Constant").click();
+    for _ in 0..2 {
+        h.step();
+        if h.state().is_building() {
+            assert_eq!(
+                h.state().scene().unwrap().desc.environment,
+                Some(before.clone())
+            );
+            break;
+        }
+    }
+    step_until(&mut h, "the constant sky", |a| {
+        !a.is_building()
+            && a.scene().unwrap().desc.environment.as_ref().map(|e| &e.map)
+                == Some(&portalview::asset::environment::EnvMap::Constant(Vec3::ONE))
+    });
+    assert!(h.state().rendered().unwrap().environment.is_some());
+    // Off, then save at once (before or after the quick build is taken; saving writes the
+    // edited environment either way): the file has no sky.
+    h.get_by_label("Off").click();
+    h.step();
+    h.get_by_label("File").click();
+    h.run_steps(2);
+    h.get_by_label("Save portals").click();
+    h.run_steps(2);
+    step_until(&mut h, "saved", |a| !a.is_busy() && !a.is_building());
+    let reloaded = portalview::scene::Scene::load(&path).unwrap();
+    assert!(reloaded.desc.environment.is_none());
+    assert!(h.state().scene().unwrap().environment.is_none());
+    if let Some(dir) = path.parent() {
+        let _ = std::fs::remove_dir_all(dir);
+    }
 }

@@ -5,7 +5,8 @@
 //! passes a chi-square test against its pdf while samples of another technique fail it; every
 //! strategy's image agrees with environment sampling on `window`, `windows2` and a window that
 //! covers half its opening; the light technique alone is unbiased with alpha = 0.1 and biased
-//! at alpha = 0 on the half-covered window. Run in release.
+//! at alpha = 0 on the half-covered window; a window whose table is not built yet (the viewer's
+//! state while it builds one) is sampled by solid angle, without bias. Run in release.
 
 mod common;
 use common::{block_differences, consistent};
@@ -667,4 +668,53 @@ fn a_moved_window_reuses_its_table_and_a_turned_one_does_not() {
         differing * 1000 <= checked,
         "{differing} of {checked} differ"
     );
+}
+
+/// While the viewer builds a turned window's table, the window has none and antishadow samples
+/// it by solid angle (the other window keeps its table and the guided technique). That mixture
+/// is exact: on `windows2` with the north window turned half a turn about its normal (same
+/// opening, other axes), its image agrees with environment sampling's within statistical
+/// error, and the same image scaled by 1.03 does not (the negative case). Once built, the
+/// window is guided again.
+#[test]
+fn a_window_awaiting_its_table_is_sampled_by_solid_angle_without_bias() {
+    let scene = Scene::open("windows2").unwrap();
+    let i = 0;
+    assert!(scene.desc.portals[i].is_window());
+    let centre = scene.windows[i].polygon.centroid();
+    let normal = scene.windows[i].polygon.normal();
+    let mut portals = scene.desc.portals.clone();
+    let half_turn = Mat4::from_translation(centre)
+        * Mat4::from_axis_angle(normal, std::f32::consts::PI)
+        * Mat4::from_translation(-centre);
+    portals[i].world_from_local = half_turn * portals[i].world_from_local;
+    let (mut turned, errors) = scene.with_portals_deferred(portals, Some(&scene));
+    assert!(errors.is_empty(), "{errors:?}");
+    assert!(turned.lacks_tables());
+    assert!(!turned.windows[0].is_guided());
+    assert!(turned.windows[1].shares_table(&scene.windows[1]));
+
+    let inside = Vec3::new(0.0, 1.0, 0.0);
+    let ctx = SkySampler::new(&turned, Strategy::Antishadow, None).context(&turned, inside);
+    let techniques: Vec<SkyTechnique> = ctx.terms.iter().map(|t| t.technique).collect();
+    assert_eq!(
+        techniques,
+        [SkyTechnique::SolidAngle, SkyTechnique::Guided],
+        "{ctx:?}"
+    );
+
+    // Block z-scores against environment sampling, their standard error from both images'
+    // per-pixel sample variances (`block_differences`).
+    let reference = render_image(&turned, Strategy::Light, None, 512, 300);
+    let image = render_image(&turned, Strategy::Antishadow, None, 512, 301);
+    let blocks = block_differences(&image, &reference, 6, 1.0);
+    assert!(blocks.len() > 10, "too few lit blocks");
+    assert!(consistent(&blocks), "{blocks:?}");
+    let scaled = block_differences(&image, &reference, 6, 1.03);
+    assert!(!consistent(&scaled), "a 3% error went undetected");
+
+    turned.build_tables();
+    assert!(!turned.lacks_tables());
+    assert!(turned.windows[0].is_guided());
+    assert!(!turned.windows[0].shares_table(&scene.windows[0]));
 }

@@ -21,7 +21,7 @@ impl PortalViewApp {
             ui.label("no scene yet");
             return;
         };
-        let environment = current.scene.desc.environment.clone();
+        let environment = current.edited_environment();
         let description = match &environment {
             None => "none (black)".to_owned(),
             Some(e) => match &e.map {
@@ -119,28 +119,16 @@ impl PortalViewApp {
         }
     }
 
-    /// Applies an environment edit to the scene on screen and restarts the render.
+    /// Applies an environment edit: the builder makes the environment and its windows' tables
+    /// (once, off the UI thread) while the old scene renders, then the render restarts.
     pub(super) fn apply_environment(&mut self, edit: EnvironmentEdit) {
         let EnvironmentEdit::Set(environment) = edit;
         let Some(current) = &mut self.current else {
             return;
         };
-        let built = current
-            .scene
-            .with_environment(environment.clone())
-            .and_then(|scene| {
-                let rendered = current.rendered.with_environment(environment)?;
-                Ok((scene, rendered))
-            });
-        match built {
-            Ok((scene, rendered)) => {
-                current.scene = scene;
-                current.rendered = rendered;
-                self.environment_dirty = true;
-                self.restart();
-            }
-            Err(e) => self.message = Some(e.to_string()),
-        }
+        current.environment = Some(environment);
+        self.environment_dirty = true;
+        self.request_build();
     }
 
     /// A chosen environment file: loaded in the background, then applied with the current

@@ -1,11 +1,13 @@
 //! The viewer: an eframe window showing the progressive render of a scene, the antishadow
 //! overlays, portal editing and the comparison mode. The app owns UI state only: rendering
-//! happens on the worker, reached through one [`RenderHandle`], and scenes are opened and saved
-//! by background [`loader::Job`]s; the UI never waits on either.
+//! happens on the worker, reached through one [`RenderHandle`], scenes are opened and saved
+//! by background [`loader::Job`]s, and what an edit needs that takes long (window tables, an
+//! environment) is made by the [`builder::Builder`]; the UI never waits on any of them.
 //!
 //! This file holds the app, its frame loop and the commands a frame collects; each panel,
 //! the viewport, the gizmo and the file dialogs live in their own files.
 
+mod builder;
 pub mod compare_view;
 pub mod edit;
 mod environment_panel;
@@ -26,7 +28,7 @@ use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 use crate::asset::desc::PortalDesc;
-use crate::asset::environment::EnvironmentOverrides;
+use crate::asset::environment::{EnvironmentDesc, EnvironmentOverrides};
 use crate::camera::Camera;
 use crate::light::{Mixture, Strategy};
 use crate::render::integrator::RenderSettings;
@@ -34,6 +36,7 @@ use crate::render::worker::{Frame, RenderHandle, RenderRequest};
 use crate::sampling::SamplerKind;
 use crate::scene::Scene;
 use crate::scene::opening::fit_opening;
+use builder::{Builder, Built};
 use compare_view::CompareView;
 use edit::PortalEditor;
 use environment_panel::EnvironmentEdit;
@@ -83,8 +86,13 @@ enum Command {
 struct Current {
     /// The scene as loaded or last saved.
     scene: Scene,
-    /// The scene with the editor's valid portals: what the worker renders.
+    /// The scene with the editor's valid portals: what the worker renders. Its windows may
+    /// lack their guided tables while the builder makes them (they are then sampled by solid
+    /// angle, which is exact).
     rendered: Scene,
+    /// An environment edit the builder is making (`Some(None)`: off); until it is done the
+    /// scenes keep the old one.
+    environment: Option<Option<EnvironmentDesc>>,
     /// The camera as the user moved it (starts as the scene's).
     camera: Camera,
     /// Portals the editor holds that break a precondition: (index, message).
@@ -97,7 +105,16 @@ impl Current {
             camera: scene.camera,
             rendered: scene.clone(),
             scene,
+            environment: None,
             portal_errors: Vec::new(),
+        }
+    }
+
+    /// The environment as last edited (what the panel shows and saving writes).
+    fn edited_environment(&self) -> Option<EnvironmentDesc> {
+        match &self.environment {
+            Some(edited) => edited.clone(),
+            None => self.scene.desc.environment.clone(),
         }
     }
 
@@ -122,6 +139,8 @@ pub struct PortalViewApp {
     current: Option<Current>,
     pub editor: PortalEditor,
     renderer: RenderHandle,
+    /// Builds window tables and environments for edits.
+    builder: Builder<Built>,
     /// The newest frame and its textures.
     view: FrameView,
     /// Which portal the region overlay shows (`None`: all).
@@ -197,6 +216,8 @@ impl PortalViewApp {
         settings.show_volumes |= options.volumes;
         let repaint = ctx.clone();
         let renderer = RenderHandle::spawn(0, Box::new(move || repaint.request_repaint()))?;
+        let repaint = ctx.clone();
+        let builder = Builder::spawn(Box::new(move || repaint.request_repaint()))?;
         let job = Job::open_with_environment(settings.scene.clone(), options.environment, ctx);
         Ok(PortalViewApp {
             job: Some(job),
@@ -204,6 +225,7 @@ impl PortalViewApp {
             current: None,
             editor: PortalEditor::default(),
             renderer,
+            builder,
             view: FrameView::default(),
             overlay_portal: None,
             environment_dirty: false,
@@ -233,6 +255,27 @@ impl PortalViewApp {
     /// Whether a scene is opening or saving in the background.
     pub fn is_busy(&self) -> bool {
         self.job.is_some()
+    }
+
+    /// The scene the worker renders: the editor's valid portals, its windows perhaps still
+    /// without their tables (`None` until the first scene has loaded).
+    pub fn rendered(&self) -> Option<&Scene> {
+        self.current.as_ref().map(|c| &c.rendered)
+    }
+
+    /// Whether an edit's window tables or environment are building in the background.
+    pub fn is_building(&self) -> bool {
+        self.builder.is_building()
+    }
+
+    /// What the builder is making, in a few words, while it is.
+    fn building(&self) -> Option<&'static str> {
+        let current = self.current.as_ref().filter(|_| self.is_building())?;
+        Some(if current.environment.is_some() {
+            "building the environment"
+        } else {
+            "building window tables"
+        })
     }
 
     /// The error or notice the side panel shows.
@@ -297,7 +340,8 @@ impl PortalViewApp {
         };
         let mut scene = current.rendered.clone();
         scene.camera = current.camera;
-        if self.mode == ViewMode::Compare {
+        // The comparison waits for the built scene: it would time the stand-in technique.
+        if self.mode == ViewMode::Compare && !self.builder.is_building() {
             self.compare.set_scene(scene.clone());
         }
         let (width, height) = self.requested_size;
@@ -315,19 +359,62 @@ impl PortalViewApp {
         self.requested_at = Some((generation, Instant::now()));
     }
 
-    /// Rebuilds the rendered scene from the editor's portals and restarts.
+    /// Rebuilds the rendered scene from the editor's portals and restarts, without waiting:
+    /// a window keeps its guided table if it kept its axes (a move, a resize); a turned or
+    /// new one has none until the builder has made it, and is sampled by solid angle (exact)
+    /// meanwhile; the built scene then restarts the render again.
     pub fn apply_portal_edit(&mut self) {
         if let Some(current) = &mut self.current {
             let (rendered, errors) = current
                 .scene
-                .with_portals_reusing(self.editor.portals.clone(), Some(&current.rendered));
+                .with_portals_deferred(self.editor.portals.clone(), Some(&current.rendered));
             current.rendered = rendered;
             current.portal_errors = errors
                 .into_iter()
                 .map(|(i, e)| (i, e.to_string()))
                 .collect();
         }
+        self.request_build();
         self.restart();
+    }
+
+    /// Asks the builder for what the rendered scene lacks (window tables, an edited
+    /// environment); if it lacks nothing, forgets any build under way (its state is gone).
+    fn request_build(&mut self) {
+        let Some(current) = &self.current else {
+            return;
+        };
+        let environment = current.environment.clone();
+        if environment.is_none() && !current.rendered.lacks_tables() {
+            self.builder.forget();
+            return;
+        }
+        let (scene, rendered) = (current.scene.clone(), current.rendered.clone());
+        self.builder.request(Box::new(move || {
+            builder::complete(scene, rendered, environment)
+        }));
+    }
+
+    /// Takes the builder's result: the scene to render (and, after an environment edit, the
+    /// saved scene under the new environment); the render restarts.
+    fn poll_build(&mut self) {
+        let Some(result) = self.builder.poll() else {
+            return;
+        };
+        let Some(current) = &mut self.current else {
+            return;
+        };
+        current.environment = None;
+        match result {
+            Ok(Built { scene, rendered }) => {
+                if let Some(scene) = scene {
+                    current.scene = scene;
+                }
+                current.rendered = rendered;
+                self.restart();
+            }
+            Err(e) => self.message = Some(e),
+        }
     }
 
     /// Starts opening a built-in scene or a file in the background; the current scene stays
@@ -353,8 +440,10 @@ impl PortalViewApp {
         };
         let into_source = current.scene.source.as_deref() == Some(target.as_path());
         self.environment_dirty = false;
+        // The latest edits, whether or not their tables or environment are built yet.
         let mut desc = (*current.scene.desc).clone();
         desc.portals = self.editor.portals.clone();
+        desc.environment = current.edited_environment();
         desc.camera = Some(current.camera);
         let request = SaveRequest {
             target,
@@ -395,7 +484,7 @@ impl PortalViewApp {
                 portals,
             }) => self.saved(path, scene, portals),
             Ok(Done::Environment(map)) => {
-                let kept = self.scene().and_then(|s| s.desc.environment.clone());
+                let kept = self.current.as_ref().and_then(Current::edited_environment);
                 let environment = crate::asset::environment::EnvironmentDesc {
                     map,
                     ..kept.unwrap_or(crate::asset::environment::EnvironmentDesc::constant(
@@ -422,6 +511,7 @@ impl PortalViewApp {
         self.settings.scene = name;
         self.editor = PortalEditor::new(&scene);
         self.current = Some(Current::new(scene));
+        self.builder.forget();
         self.overlay_portal = None;
         self.environment_dirty = false;
     }
@@ -430,9 +520,14 @@ impl PortalViewApp {
     /// nodes), and the view stays as it is. Edits made while saving stay, unsaved.
     fn saved(&mut self, path: PathBuf, scene: Scene, portals: Vec<PortalDesc>) {
         let camera = self.current.as_ref().map(|c| c.camera);
+        let environment = self.current.as_ref().map(Current::edited_environment);
         let editor = std::mem::take(&mut self.editor);
         let unchanged = editor.portals == portals;
+        let saved_environment = scene.desc.environment.clone();
         self.show_scene(scene, path.display().to_string());
+        if let Some(environment) = environment.filter(|e| *e != saved_environment) {
+            self.apply_environment(EnvironmentEdit::Set(environment));
+        }
         if let (Some(current), Some(camera)) = (&mut self.current, camera) {
             current.camera = camera;
         }
@@ -614,6 +709,7 @@ impl PortalViewApp {
         let start = Instant::now();
         let ctx = ui.ctx().clone();
         self.poll_job();
+        self.poll_build();
         self.poll_frame();
         self.view.update_overlay(
             &ctx,

@@ -260,6 +260,11 @@ impl PortalViewApp {
             if self.paused {
                 ui.label("paused");
             }
+            if let Some(what) = self.building() {
+                ui.separator();
+                ui.spinner();
+                ui.label(format!("{what}…"));
+            }
         });
     }
 }

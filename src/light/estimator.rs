@@ -22,7 +22,10 @@ use super::portal::Portal;
 use super::punctual::Lamp;
 use super::{LightSet, Strategy, Technique, split_share};
 use crate::sampling::Distribution1D;
-use crate::sampling::polygon::{Plane, Verts, clip_convex_into, convex_hull_in_plane, merge_close};
+use crate::sampling::polygon::{
+    Cut, Plane, Verts, clip_convex_into, convex_hull_in_plane, merge_close,
+    sample_polygon_area_ordered,
+};
 use crate::sampling::spherical::SphericalPolygon;
 
 /// The most portals one shading point can use for one light.
@@ -372,7 +375,7 @@ impl LightSampler {
     ) -> Option<LightSample> {
         let (light_share, other) = ctx.light_share();
         let (from_light_share, u) = split_share(u, light_share);
-        self.draw_share(scene, ctx, (from_light_share, other), u_technique, u)
+        self.draw_share(scene, ctx, (from_light_share, other), u_technique, u, true)
     }
 
     /// A direction from one share of the mixture with `u` as it is: the light technique
@@ -391,10 +394,14 @@ impl LightSampler {
         u: Vec2,
     ) -> Option<LightSample> {
         let other = ctx.light_share().1;
-        self.draw_share(scene, ctx, (from_light_share, other), u_technique, u)
+        // The light drawn plainly: beside a sample of the other share its zeros weigh only
+        // `λ`, and the ordered draw's clips cost more than they save (fig8c: MSE 6% lower at
+        // 37% more instructions per sample).
+        self.draw_share(scene, ctx, (from_light_share, other), u_technique, u, false)
     }
 
-    /// [`Self::sample_share`] given the other techniques' summed weight `other`.
+    /// [`Self::sample_share`] given the other techniques' summed weight `other`; `ordered`
+    /// draws the light technique's part hidden by the portal from the lowest `u.x`.
     #[inline(always)]
     fn draw_share(
         &self,
@@ -403,6 +410,7 @@ impl LightSampler {
         (from_light_share, other): (bool, f32),
         u_technique: f32,
         u: Vec2,
+        ordered: bool,
     ) -> Option<LightSample> {
         let light = &scene.lights()[ctx.light];
         let x = ctx.x;
@@ -449,7 +457,22 @@ impl LightSampler {
                 let (wi, pdf) = t.projection()?.sample(u)?;
                 (wi, self.light_hit(scene, ctx.light, x, wi), pdf)
             }
-            _ => from_light(light.sample_point(u)?)?,
+            // The light technique beside another one: its part that `x` does not see through
+            // the heaviest other term's portal comes from the lowest `u.x`. Where the portal
+            // is the only opening that part is occluded, and its zeros are then as evenly
+            // counted as stratified `u.x` allows (`docs/method.md` §5). Same density.
+            _ => match (
+                &light.polygon,
+                ordered
+                    .then(|| self.seen_through_portal(scene, ctx, other))
+                    .flatten(),
+            ) {
+                (Some(polygon), Some(cut)) => from_light(LightPoint {
+                    p: sample_polygon_area_ordered(polygon.vertices(), &cut, u),
+                    n: polygon.normal(),
+                })?,
+                _ => from_light(light.sample_point(u)?)?,
+            },
         };
         let le = hit.map_or(Vec3::ZERO, |(y, _)| light.emitted(y.n, -wi));
         // Without portals the mixture is light sampling alone, whose density is in hand.
@@ -466,6 +489,27 @@ impl LightSampler {
             technique,
             technique_pdf,
         })
+    }
+
+    /// The half-spaces that hold the part of the light that the context's point sees through
+    /// the portal of its heaviest term of another technique than the light's (`other` is
+    /// their total weight); `None` without such a term.
+    #[inline(always)]
+    fn seen_through_portal(
+        &self,
+        scene: &impl LightSet,
+        ctx: &LightContext,
+        other: f32,
+    ) -> Option<Cut> {
+        if other <= 0.0 {
+            return None;
+        }
+        let term = ctx
+            .terms()
+            .iter()
+            .filter(|t| t.technique != Technique::Light)
+            .max_by(|a, b| a.weight.total_cmp(&b.weight))?;
+        scene.portals()[term.portal].seen_through_from(ctx.x)
     }
 
     /// Where the ray from the context's point along `wi` first meets the light, ignoring

@@ -7,7 +7,7 @@ use super::antishadow::{
 };
 use super::area::AreaLight;
 use crate::asset::desc::PortalDesc;
-use crate::sampling::polygon::{ConvexPolygon, PolygonError};
+use crate::sampling::polygon::{ConvexPolygon, Cut, Plane, PolygonError};
 
 /// Why a portal node cannot be used; every message names the node.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -117,6 +117,31 @@ impl Portal {
 }
 
 impl Portal {
+    /// The half-spaces whose intersection holds the points that `x` sees through the portal
+    /// behind it: one plane through `x` and each edge, positive on the portal's side, and the
+    /// portal's plane, positive behind it. `None` unless `x` lies in front of the portal and
+    /// off the lines of its edges.
+    #[inline(always)]
+    pub fn seen_through_from(&self, x: Vec3) -> Option<Cut> {
+        let plane = self.polygon.plane();
+        if plane.signed_distance(x) <= 0.0 {
+            return None;
+        }
+        let (v, c) = (self.polygon.vertices(), self.polygon.centroid());
+        let mut cut = Cut::new();
+        for i in 0..v.len() {
+            let edge = Plane::through(x, v[i], v[if i + 1 == v.len() { 0 } else { i + 1 }])?;
+            let edge = if edge.signed_distance(c) < 0.0 {
+                edge.flipped()
+            } else {
+                edge
+            };
+            cut.try_push(edge).ok()?;
+        }
+        cut.try_push(plane.flipped()).ok()?;
+        Some(cut)
+    }
+
     /// The region of `x` found without the planes, by projecting the light (or its solid)
     /// through the portal: a slow reference for tests and the overlay's debug mode.
     pub fn classify_brute_force(&self, x: Vec3) -> Region {

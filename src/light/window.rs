@@ -79,6 +79,21 @@ impl Window {
         environment: Option<&Environment>,
         built: &[Window],
     ) -> Result<Window, WindowError> {
+        let mut window = Self::new_deferred(desc, desc_index, environment, built)?;
+        window.build_table(environment);
+        Ok(window)
+    }
+
+    /// [`Self::new_reusing`] without building a table that no window in `built` has: the
+    /// window then has none until [`Self::build_table`] (the viewer builds it off the UI
+    /// thread), and the antishadow strategy samples it uniformly in its solid angle, an exact
+    /// technique of its own ([`SkyTechnique::of`](super::sky::SkyTechnique::of)).
+    pub fn new_deferred(
+        desc: &PortalDesc,
+        desc_index: usize,
+        environment: Option<&Environment>,
+        built: &[Window],
+    ) -> Result<Window, WindowError> {
         if !(0.0..=1.0).contains(&desc.alpha) {
             return Err(WindowError::BadAlpha {
                 portal: desc.name.clone(),
@@ -96,18 +111,11 @@ impl Window {
             let close = |a: DVec3, b: DVec3| a.dot(b) > 1.0 - 1e-9;
             close(w.frame.s, frame.s) && close(w.frame.t, frame.t) && close(w.frame.out, frame.out)
         };
-        let guided = environment.filter(|e| !e.is_constant()).map(|e| {
-            match built
+        let guided = environment.filter(|e| !e.is_constant()).and_then(|_| {
+            built
                 .iter()
                 .filter(same_axes)
                 .find_map(|w| w.guided.clone())
-            {
-                Some(table) => table,
-                None => Arc::new(GuidedTable::new(
-                    |a, b| frame.direction(a, b).as_vec3(),
-                    |w| e.sampling_weight(w),
-                )),
-            }
         });
         Ok(Window {
             name: desc.name.clone(),
@@ -117,6 +125,25 @@ impl Window {
             frame,
             guided,
         })
+    }
+
+    /// Whether the window has no guided table yet under `environment`, its own (an image to
+    /// follow: a constant sky needs none).
+    pub fn lacks_table(&self, environment: Option<&Environment>) -> bool {
+        self.guided.is_none() && environment.is_some_and(|e| !e.is_constant())
+    }
+
+    /// Builds the guided table the window lacks under `environment`, its own (0.3 s of two
+    /// cores for the built-in sky).
+    pub fn build_table(&mut self, environment: Option<&Environment>) {
+        let Some(e) = environment.filter(|_| self.lacks_table(environment)) else {
+            return;
+        };
+        let frame = self.frame;
+        self.guided = Some(Arc::new(GuidedTable::new(
+            |a, b| frame.direction(a, b).as_vec3(),
+            |w| e.sampling_weight(w),
+        )));
     }
 
     /// Whether `x` is strictly in front of the window (on the room's side).
@@ -132,7 +159,7 @@ impl Window {
         }
     }
 
-    /// Whether the guided technique has a table (an image environment).
+    /// Whether the guided technique has a table (an image environment, once it is built).
     pub fn is_guided(&self) -> bool {
         self.guided.is_some()
     }

@@ -148,6 +148,12 @@ impl<W: Work> WorkerHandle<W> {
         self.shared.try_lock().ok()?.frame.clone()
     }
 
+    /// Takes the newest frame out of the slot, for a worker whose frames are results each
+    /// used once (the slot then holds none of their memory).
+    pub fn take(&self) -> Option<W::Frame> {
+        self.shared.try_lock().ok()?.frame.take()
+    }
+
     /// Why the last job failed, if it did (cleared by the next published frame).
     pub fn error(&self) -> Option<String> {
         self.shared.try_lock().ok()?.error.clone()

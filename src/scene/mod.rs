@@ -482,6 +482,20 @@ impl Scene {
         portals: Vec<PortalDesc>,
         previous: Option<&Scene>,
     ) -> (Scene, Vec<(usize, PortalError)>) {
+        let (mut scene, errors) = self.with_portals_deferred(portals, previous);
+        scene.build_tables();
+        (scene, errors)
+    }
+
+    /// [`Self::with_portals_reusing`] without building the tables it cannot reuse (a turned
+    /// or new window): cheap, so the viewer's UI thread makes it at once and renders it while
+    /// [`Self::build_tables`] runs on another thread (a window without its table is sampled
+    /// uniformly in its solid angle, which is exact).
+    pub fn with_portals_deferred(
+        &self,
+        portals: Vec<PortalDesc>,
+        previous: Option<&Scene>,
+    ) -> (Scene, Vec<(usize, PortalError)>) {
         let same_environment = |p: &&Scene| match (&p.environment, &self.environment) {
             (Some(a), Some(b)) => Arc::ptr_eq(a, b),
             _ => false,
@@ -494,7 +508,7 @@ impl Scene {
         let mut errors = Vec::new();
         for (i, d) in portals.iter().enumerate() {
             if d.is_window() {
-                match Window::new_reusing(d, i, self.environment.as_deref(), built) {
+                match Window::new_deferred(d, i, self.environment.as_deref(), built) {
                     Ok(w) => windows.push(w),
                     Err(e) => errors.push((i, e.into())),
                 }
@@ -518,9 +532,35 @@ impl Scene {
         (scene, errors)
     }
 
+    /// Whether a window lacks the guided table the environment calls for (see
+    /// [`Self::with_portals_deferred`]).
+    pub fn lacks_tables(&self) -> bool {
+        let environment = self.environment.as_deref();
+        self.windows.iter().any(|w| w.lacks_table(environment))
+    }
+
+    /// Builds the guided tables the windows lack.
+    pub fn build_tables(&mut self) {
+        let environment = self.environment.as_deref();
+        for window in &mut self.windows {
+            window.build_table(environment);
+        }
+    }
+
     /// The same scene under another environment (`None`: black). Windows are rebuilt for it
     /// (their guided tables follow the image); windows that were left out stay out.
     pub fn with_environment(
+        &self,
+        environment: Option<EnvironmentDesc>,
+    ) -> Result<Scene, SceneError> {
+        let mut scene = self.with_environment_deferred(environment)?;
+        scene.build_tables();
+        Ok(scene)
+    }
+
+    /// [`Self::with_environment`] without the windows' guided tables
+    /// ([`Self::build_tables`] builds them).
+    pub fn with_environment_deferred(
         &self,
         environment: Option<EnvironmentDesc>,
     ) -> Result<Scene, SceneError> {
@@ -532,7 +572,7 @@ impl Scene {
             .iter()
             .enumerate()
             .filter(|(_, d)| d.is_window())
-            .filter_map(|(i, d)| Window::new(d, i, built.as_deref()).ok())
+            .filter_map(|(i, d)| Window::new_deferred(d, i, built.as_deref(), &[]).ok())
             .collect();
         let desc = SceneDesc {
             environment,

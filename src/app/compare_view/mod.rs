@@ -136,6 +136,8 @@ pub struct CompareView {
     picker: Option<FilePicker>,
     textures: HashMap<Side, (TextureKey, TextureHandle)>,
     message: Option<String>,
+    /// Whether the numbers subtract the reference's noise floor from each error.
+    subtract_floor: bool,
 }
 
 impl Default for CompareView {
@@ -153,6 +155,7 @@ impl Default for CompareView {
             picker: None,
             textures: HashMap::new(),
             message: None,
+            subtract_floor: false,
         }
     }
 }

@@ -8,7 +8,7 @@ use super::{CompareView, CompareViewSettings, strategy_colour};
 use crate::app::files::{FilePicker, Purpose, folder_of};
 use crate::compare::report::sci;
 use crate::compare::worker::{ReferenceStatus, RunFrame};
-use crate::compare::{REFERENCE_STRATEGY, ReferenceOrigin};
+use crate::compare::{REFERENCE_STRATEGY, ReferenceOrigin, mse_above_floor};
 use crate::light::Strategy;
 
 impl CompareView {
@@ -175,35 +175,48 @@ impl CompareView {
         }
     }
 
-    pub(super) fn numbers(&self, ui: &mut Ui) {
+    pub(super) fn numbers(&mut self, ui: &mut Ui) {
         let Some(frame) = self.frame.as_ref().filter(|f| !f.runs.is_empty()) else {
             ui.label("no numbers yet");
             return;
         };
-        let light = frame.run(Strategy::Light);
+        let floor = match &frame.reference {
+            ReferenceStatus::Ready(r) => r.info.as_ref().map(|i| i.convergence),
+            _ => None,
+        };
+        // The reference's own noise adds its floor to every measured error; subtracted, the
+        // error is an unbiased estimate of the true one (see `compare::mse_above_floor`).
+        let floor = floor.filter(|_| self.subtract_floor);
+        let errors = |run: &RunFrame| match floor {
+            Some(c) => (
+                mse_above_floor(run.mse, Some(c.mse_floor)),
+                mse_above_floor(run.relmse, Some(c.relmse_floor)),
+            ),
+            None => (Some(run.mse), Some(run.relmse)),
+        };
+        let light = frame.run(Strategy::Light).map(|l| (l, errors(l).0));
         egui::Grid::new("compare numbers")
             .num_columns(6)
             .striped(true)
             .show(ui, |ui| {
-                for h in [
-                    "strategy",
-                    "spp",
-                    "seconds",
-                    "MSE",
-                    "relMSE",
-                    "eff. vs light",
-                ] {
+                let (mse, relmse) = match floor {
+                    Some(_) => ("MSE − floor", "relMSE − floor"),
+                    None => ("MSE", "relMSE"),
+                };
+                for h in ["strategy", "spp", "seconds", mse, relmse, "eff. vs light"] {
                     ui.label(RichText::new(h).strong());
                 }
                 ui.end_row();
+                let shown = |e: Option<f64>| e.map_or("≤ floor".to_owned(), sci);
                 for run in &frame.runs {
+                    let (mse, relmse) = errors(run);
                     ui.colored_label(strategy_colour(run.strategy), run.strategy.name());
                     ui.label(format!("{}", run.spp));
                     ui.label(format!("{:.2}", run.seconds));
-                    ui.label(sci(run.mse));
-                    ui.label(sci(run.relmse));
+                    ui.label(shown(mse));
+                    ui.label(shown(relmse));
                     ui.label(
-                        efficiency_vs_light(run, light)
+                        efficiency_vs_light((mse, run.seconds), light)
                             .map_or("-".to_owned(), |e| format!("{e:.2}")),
                     );
                     ui.end_row();
@@ -211,6 +224,19 @@ impl CompareView {
             });
         ui.label(
             "Efficiency is 1 / (MSE × seconds), relative to light sampling's: above 1 is better.",
+        );
+        let has_floor = matches!(&frame.reference, ReferenceStatus::Ready(r) if r.info.is_some());
+        ui.add_enabled(
+            has_floor,
+            egui::Checkbox::new(
+                &mut self.subtract_floor,
+                "subtract the reference's noise floor",
+            ),
+        )
+        .on_hover_text(
+            "The reference's own noise adds its per-pixel variance (the floor, above) to every \
+             measured error. Subtracted, each error estimates the true one without bias, but \
+             it is uncertain when it is close to the floor (shown as ≤ floor when below).",
         );
     }
 }
@@ -225,10 +251,14 @@ fn origin_text(origin: &ReferenceOrigin) -> String {
     }
 }
 
-/// Efficiency `1 / (MSE × seconds)` of `run` over light sampling's, when both are known.
-fn efficiency_vs_light(run: &RunFrame, light: Option<&RunFrame>) -> Option<f64> {
-    let light = light?;
-    let e = light.mse * light.seconds / (run.mse * run.seconds);
+/// Efficiency `1 / (MSE × seconds)` of a run's (MSE, seconds) over light sampling's, when
+/// both MSEs are known.
+fn efficiency_vs_light(
+    (mse, seconds): (Option<f64>, f64),
+    light: Option<(&RunFrame, Option<f64>)>,
+) -> Option<f64> {
+    let (light, light_mse) = light?;
+    let e = light_mse? * light.seconds / (mse? * seconds);
     e.is_finite().then_some(e)
 }
 
