@@ -1048,7 +1048,7 @@ fn each_share_mixture_matches_lambert() {
 /// What drawing from each share is for: at floor points of fig8c's antipenumbra (the light in a
 /// box, seen only through the portal), the light share's draws that miss the portal are zeros
 /// of weight `λ` instead of whole samples. The renderer's per-sample standard error there must
-/// fall at least 2× against one sample of the mixture (measured: 4.3–7.4× at these points),
+/// fall at least 2× against one sample of the mixture (measured: 4.3–7.5× at these points),
 /// and both estimates must agree within 4 combined standard errors.
 #[test]
 fn each_share_mixture_lowers_the_error_in_fig8c() {
