@@ -985,7 +985,7 @@ fn each_share_irradiance(
     common::mean_and_se(&values)
 }
 
-/// Drawing from each share of the mixture (the default, `Mixture::EachShare`) is unbiased:
+/// Drawing from each share of the mixture (`Mixture::EachShare`) is unbiased:
 /// at floor points of a small portal's antipenumbra and antiantumbra, where the light is also
 /// seen beside the portal (only the light share reaches it), the light techniques alone and the
 /// full renderer (MIS with BSDF sampling, both mixtures) match Lambert's formula within 4

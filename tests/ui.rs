@@ -7,8 +7,8 @@ use egui_kittest::kittest::Queryable;
 use glam::Vec3;
 use portalview::app::PortalViewApp;
 use portalview::app::overlay::OverlayKind;
-use portalview::light::Strategy;
 use portalview::light::antishadow::Region;
+use portalview::light::{Mixture, Strategy};
 use portalview::sampling::SamplerKind;
 mod ui_common;
 
@@ -72,6 +72,40 @@ fn switching_sampler_restarts_the_render_with_it() {
             has_full_frame(a) && a.frame().unwrap().generation > generation
         });
     }
+}
+
+/// The mixture buttons restart the render with the chosen estimator: in fig8c, where most
+/// shading points draw from both shares, one sample from each traces more shadow rays per
+/// camera ray than one sample of the mixture.
+#[test]
+fn switching_the_mixture_restarts_the_render_with_it() {
+    let _serial = serial();
+    let mut h = harness("fig8c");
+    step_until(&mut h, "first frame", has_full_frame);
+    let shadow_rays_per_path = |a: &PortalViewApp| {
+        let s = a.frame().unwrap().stats;
+        s.shadow_rays as f64 / s.camera_rays as f64
+    };
+    let mut ratios = Vec::new();
+    // One sample is the default: each share first, then back.
+    for (label, mixture) in [
+        ("each-share", Mixture::EachShare),
+        ("one-sample", Mixture::OneSample),
+    ] {
+        let generation = h.state().frame().unwrap().generation;
+        h.get_by_label(label).click();
+        h.step();
+        assert_eq!(h.state().settings.mixture, mixture);
+        assert_eq!(h.state().render_settings().mixture, mixture);
+        step_until(&mut h, "restarted frame", |a| {
+            has_full_frame(a) && a.frame().unwrap().generation > generation
+        });
+        ratios.push(shadow_rays_per_path(h.state()));
+    }
+    assert!(
+        ratios[0] > 1.2 * ratios[1],
+        "shadow rays per path {ratios:?}"
+    );
 }
 
 #[test]

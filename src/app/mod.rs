@@ -213,6 +213,7 @@ impl PortalViewApp {
         settings.overlay = options.overlay.unwrap_or(settings.overlay);
         settings.max_depth = options.max_depth.unwrap_or(settings.max_depth).max(1);
         settings.sampler = options.sampler.unwrap_or(settings.sampler);
+        settings.mixture = options.mixture.unwrap_or(settings.mixture);
         settings.show_volumes |= options.volumes;
         let repaint = ctx.clone();
         let renderer = RenderHandle::spawn(0, Box::new(move || repaint.request_repaint()))?;
@@ -328,7 +329,7 @@ impl PortalViewApp {
             max_depth: self.settings.max_depth,
             seed: 0,
             sampler: self.settings.sampler,
-            mixture: Mixture::default(),
+            mixture: self.settings.mixture,
         }
     }
 
@@ -728,7 +729,7 @@ impl PortalViewApp {
                 &settings.compare,
                 settings.max_depth,
                 settings.alpha,
-                settings.sampler,
+                (settings.sampler, settings.mixture),
             );
             self.compare.show(
                 ui,
@@ -771,6 +772,7 @@ pub struct ViewOptions {
     pub volumes: bool,
     pub max_depth: Option<u32>,
     pub sampler: Option<SamplerKind>,
+    pub mixture: Option<Mixture>,
     /// Replaces the start-up scene's environment (the command line's `--environment…`).
     pub environment: EnvironmentOverrides,
 }

@@ -2,7 +2,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::light::Strategy;
+use crate::light::{Mixture, Strategy};
 use crate::sampling::SamplerKind;
 
 use super::compare_view::CompareViewSettings;
@@ -18,6 +18,8 @@ pub struct ViewerSettings {
     pub max_depth: u32,
     /// Where the render's random numbers come from.
     pub sampler: SamplerKind,
+    /// How a shading point draws from its light mixture.
+    pub mixture: Mixture,
     /// Exposure in stops.
     pub exposure: f32,
     /// Show log-luminance in false colour instead of the tone-mapped image.
@@ -49,6 +51,7 @@ impl Default for ViewerSettings {
             // only indirectly (the outside of a lampshade) are visible in the viewer.
             max_depth: 2,
             sampler: SamplerKind::default(),
+            mixture: Mixture::default(),
             exposure: 0.0,
             false_colour: false,
             resolution_scale: 0.5,

@@ -6,7 +6,7 @@ use egui::Color32;
 use super::overlay::{self, OverlayKind};
 use super::{Command, PortalViewApp, ViewMode, ViewerSettings};
 use crate::light::antishadow::Region;
-use crate::light::{Strategy, Technique};
+use crate::light::{Mixture, Strategy, Technique};
 use crate::sampling::SamplerKind;
 
 impl PortalViewApp {
@@ -48,6 +48,7 @@ impl PortalViewApp {
             alpha,
             max_depth,
             sampler,
+            mixture,
             exposure,
             false_colour,
             resolution_scale,
@@ -86,6 +87,20 @@ impl PortalViewApp {
                 .on_hover_text("sobol: Owen-scrambled Sobol' points, stratified per pixel (less noise at equal samples); independent: uniform random numbers");
             for s in SamplerKind::ALL {
                 if ui.selectable_value(sampler, s, s.name()).changed() {
+                    commands.push(Command::Restart);
+                }
+            }
+        });
+        ui.horizontal(|ui| {
+            ui.label("mixture").on_hover_text(
+                "Where a point's light mixture has both a light share and a portal share \
+                 (antipenumbra, antiantumbra): one-sample draws one sample of the mixture (the \
+                 thesis's estimator); each-share draws one from each, weighted by its share \
+                 (less noise where the light share's samples are often blocked, a second \
+                 shadow ray there). Both are unbiased.",
+            );
+            for m in Mixture::ALL {
+                if ui.selectable_value(mixture, m, m.name()).changed() {
                     commands.push(Command::Restart);
                 }
             }

@@ -174,6 +174,7 @@ pub fn run(args: &CompareArgs) -> Result<()> {
             image,
             seed: args.image.seed,
             sampler: args.image.sampler,
+            mixture: args.image.mixture,
             alpha: args.alpha,
         };
         let progress = progress_bar(0, "{bar:40} {msg}  {elapsed_precise}");

@@ -17,6 +17,7 @@ pub use render::RenderArgs;
 pub use view::ViewArgs;
 
 use crate::asset::environment::EnvironmentOverrides;
+use crate::light::Mixture;
 use crate::sampling::SamplerKind;
 use crate::scene::Scene;
 
@@ -112,6 +113,10 @@ pub struct ImageArgs {
     /// independent ones.
     #[arg(long, value_enum, default_value_t = SamplerKind::default())]
     pub sampler: SamplerKind,
+    /// Where a shading point's light mixture has both a light share and a portal share: one
+    /// sample of the mixture (the thesis's), or one sample from each, weighted by its share.
+    #[arg(long, value_enum, default_value_t = Mixture::default())]
+    pub mixture: Mixture,
     #[command(flatten)]
     pub environment: EnvironmentArgs,
 }

@@ -8,9 +8,9 @@ use std::time::{Duration, Instant};
 
 use super::ImageArgs;
 use crate::compare::progress_bar;
+use crate::light::Strategy;
 use crate::light::Technique;
 use crate::light::antishadow::Region;
-use crate::light::{Mixture, Strategy};
 use crate::render::integrator::{Integrator, RenderSettings};
 use crate::render::stats::Stats;
 use crate::render::{Isa, film::Film, render_pass, tonemap};
@@ -39,10 +39,6 @@ pub struct RenderArgs {
     /// Replace every portal's alpha (probability of sampling the light itself).
     #[arg(long)]
     pub alpha: Option<f32>,
-    /// Where a shading point's light mixture has both a light share and a portal share: one
-    /// sample from each, weighted by its share, or one sample of the mixture (the thesis's).
-    #[arg(long, value_enum, default_value_t = Mixture::default())]
-    pub mixture: Mixture,
     /// Output: .exr (linear radiance) or .png (tone-mapped sRGB).
     #[arg(long)]
     pub out: PathBuf,
@@ -66,7 +62,7 @@ pub fn run(args: &RenderArgs) -> Result<()> {
         max_depth: args.image.max_depth,
         seed: args.image.seed,
         sampler: args.image.sampler,
-        mixture: args.mixture,
+        mixture: args.image.mixture,
     };
     let integrator = Integrator::new(&scene, settings);
     let (film, stats, elapsed) = match args.seconds {

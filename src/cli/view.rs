@@ -5,7 +5,7 @@ use clap::Args;
 use super::EnvironmentArgs;
 use crate::app::ViewOptions;
 use crate::app::overlay::OverlayKind;
-use crate::light::Strategy;
+use crate::light::{Mixture, Strategy};
 use crate::sampling::SamplerKind;
 
 #[derive(Args, Debug, Clone, Default)]
@@ -28,6 +28,9 @@ pub struct ViewArgs {
     /// last).
     #[arg(long, value_enum)]
     pub sampler: Option<SamplerKind>,
+    /// How a shading point draws from its light mixture (else the one used last).
+    #[arg(long, value_enum)]
+    pub mixture: Option<Mixture>,
     /// The start-up scene's sky, as for `render` (replaces the scene's).
     #[command(flatten)]
     pub environment: EnvironmentArgs,
@@ -42,6 +45,7 @@ impl From<ViewArgs> for ViewOptions {
             volumes: a.volumes,
             max_depth: a.max_depth,
             sampler: a.sampler,
+            mixture: a.mixture,
             environment: (&a.environment).into(),
         }
     }

@@ -138,6 +138,8 @@ pub struct CompareSettings {
     pub seed: u64,
     /// The compared renders' random numbers (the reference's are always independent).
     pub sampler: SamplerKind,
+    /// How the compared renders draw from a light mixture (the reference's: one sample).
+    pub mixture: Mixture,
     /// Replaces every portal's and window's alpha in the compared renders (not in the
     /// reference's, whose converged image does not depend on it).
     pub alpha: Option<f32>,
@@ -206,7 +208,7 @@ pub fn compare(
         max_depth: image.max_depth,
         seed: settings.seed,
         sampler: settings.sampler,
-        mixture: Mixture::default(),
+        mixture: settings.mixture,
     };
     let mut schedule = EqualTime::new(
         scene.clone(),

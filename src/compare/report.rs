@@ -417,6 +417,7 @@ mod tests {
                 },
                 seed: 0,
                 sampler: Default::default(),
+                mixture: Default::default(),
                 alpha: None,
             },
             reference_info: Some(ReferenceInfo {

@@ -50,6 +50,8 @@ pub struct CompareRequest {
     pub seed: u64,
     /// The compared renders' random numbers (the reference's are always independent).
     pub sampler: SamplerKind,
+    /// How the compared renders draw from a light mixture.
+    pub mixture: Mixture,
     pub reference: ReferenceSource,
     /// A reference the UI already holds: used instead of the source when it fits (same
     /// scene, camera, size and depth, and at least the budget; or the same file).
@@ -335,7 +337,7 @@ impl CompareWork {
                         max_depth: request.image.max_depth,
                         seed: request.seed,
                         sampler: request.sampler,
-                        mixture: Mixture::default(),
+                        mixture: request.mixture,
                     };
                     let schedule = EqualTime::new(
                         request.scene.clone(),

@@ -120,14 +120,16 @@ impl Strategy {
 pub enum Mixture {
     /// Where both shares draw something, one sample from each, weighted by its share
     /// (Veach's multi-sample model, balance heuristic); elsewhere one sample, as `one-sample`.
-    #[default]
     EachShare,
     /// One sample per shading point: the share picked by its probability (the thesis's
-    /// single-sample estimator).
+    /// single-sample estimator, as `METHOD.md` specifies it).
+    #[default]
     OneSample,
 }
 
 impl Mixture {
+    pub const ALL: [Mixture; 2] = [Mixture::OneSample, Mixture::EachShare];
+
     pub fn name(self) -> &'static str {
         match self {
             Mixture::EachShare => "each-share",

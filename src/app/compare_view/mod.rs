@@ -24,7 +24,7 @@ use crate::compare::worker::{
     CompareFrame, CompareHandle, CompareRequest, ReferenceSource, ReferenceStatus,
 };
 use crate::compare::{ImageSpec, Reference, ReferenceBudget, default_cache_dir, scene_hash};
-use crate::light::Strategy;
+use crate::light::{Mixture, Strategy};
 use crate::sampling::SamplerKind;
 use crate::scene::Scene;
 
@@ -102,6 +102,7 @@ struct RequestKey {
     max_depth: u32,
     alpha: Option<u32>,
     sampler: SamplerKind,
+    mixture: Mixture,
     reference: ReferenceSource,
 }
 
@@ -244,7 +245,7 @@ impl CompareView {
         settings: &CompareViewSettings,
         max_depth: u32,
         alpha: Option<f32>,
-        sampler: SamplerKind,
+        (sampler, mixture): (SamplerKind, Mixture),
     ) {
         self.poll();
         if let Some(frame) = &self.frame
@@ -278,6 +279,7 @@ impl CompareView {
             max_depth,
             alpha: alpha.map(f32::to_bits),
             sampler,
+            mixture,
             reference,
         };
         if self.worker.is_some() && self.running.as_ref() == Some(&key) {
@@ -304,6 +306,7 @@ impl CompareView {
             alpha,
             seed: COMPARE_SEED,
             sampler,
+            mixture,
             reference: key.reference.clone(),
             known_reference: self.last_reference.clone(),
             paused: self.paused,
