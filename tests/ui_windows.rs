@@ -267,17 +267,8 @@ fn hovering_the_image_keeps_accumulating() {
 #[test]
 fn environment_panel_turns_the_sky_off_and_on_and_saves() {
     let _serial = serial();
-    let dir = std::env::temp_dir().join(format!("portalview-ui-env-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    for file in ["window.glb", "window_environment.hdr"] {
-        std::fs::copy(
-            format!("{}/assets/{file}", env!("CARGO_MANIFEST_DIR")),
-            dir.join(file),
-        )
-        .unwrap();
-    }
-    let path = dir.join("window.glb");
-    let mut h = harness(path.to_str().unwrap());
+    let (mut h, path) = harness_on_copy("env");
+    let dir = path.parent().unwrap().to_owned();
     step_until(&mut h, "first frame", has_full_frame);
     let lit = h.state().frame().unwrap().clone();
     let mean = |f: &portalview::render::worker::Frame| {
