@@ -15,10 +15,10 @@ use glam::{Mat4, Vec2, Vec3};
 use portalview::asset::builtin;
 use portalview::asset::desc::PortalDesc;
 use portalview::asset::environment::{ENVIRONMENT_TARGET, EnvMap, EnvironmentDesc};
-use portalview::light::Strategy;
 use portalview::light::environment::Environment;
 use portalview::light::sky::{SkySampler, SkyTechnique};
 use portalview::light::window::Window;
+use portalview::light::{Mixture, Strategy};
 use portalview::render::film::Film;
 use portalview::render::integrator::{Integrator, RenderSettings};
 use portalview::render::render;
@@ -406,6 +406,17 @@ fn render_image(
     spp: u32,
     seed: u64,
 ) -> Film {
+    render_image_with(scene, strategy, Mixture::OneSample, alpha, spp, seed)
+}
+
+fn render_image_with(
+    scene: &Scene,
+    strategy: Strategy,
+    mixture: Mixture,
+    alpha: Option<f32>,
+    spp: u32,
+    seed: u64,
+) -> Film {
     let integrator = Integrator::new(
         scene,
         RenderSettings {
@@ -415,7 +426,7 @@ fn render_image(
             seed,
             // Block z-scores rest on per-pixel sample variance: independent numbers.
             sampler: portalview::sampling::SamplerKind::Independent,
-            ..RenderSettings::default()
+            mixture,
         },
     );
     let (film, stats) = render(&integrator, 48, 36, spp);
@@ -464,6 +475,46 @@ fn every_strategy_agrees_with_environment_sampling() {
             assert!(
                 consistent(&blocks),
                 "{name} {}: {blocks:?}",
+                strategy.name()
+            );
+            if k == 0 {
+                let scaled = block_differences(&image, &reference, 6, 1.03);
+                assert!(!consistent(&scaled), "{name}: a 3% error went undetected");
+            }
+        }
+    }
+}
+
+/// One sample from each share of the sky mixture (`--mixture each-share`) is unbiased too:
+/// on `window`, `windows2` and the half-covered window (alpha 0.1), the projection's and
+/// antishadow's images agree with environment sampling's; the first scaled by 1.03 fails the
+/// same test (the negative case).
+#[test]
+fn each_share_sky_mixture_agrees_with_environment_sampling() {
+    let scenes = [
+        ("window", Scene::open("window").unwrap()),
+        ("windows2", Scene::open("windows2").unwrap()),
+        ("half-covered window", half_covered()),
+    ];
+    for (name, scene) in scenes {
+        let reference = render_image(&scene, Strategy::Light, None, 512, 110);
+        for (k, strategy) in [Strategy::Projection, Strategy::Antishadow]
+            .into_iter()
+            .enumerate()
+        {
+            let image = render_image_with(
+                &scene,
+                strategy,
+                Mixture::EachShare,
+                None,
+                512,
+                210 + k as u64,
+            );
+            let blocks = block_differences(&image, &reference, 6, 1.0);
+            assert!(blocks.len() > 10, "{name}: too few lit blocks");
+            assert!(
+                consistent(&blocks),
+                "{name} {} each-share: {blocks:?}",
                 strategy.name()
             );
             if k == 0 {

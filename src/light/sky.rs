@@ -104,6 +104,12 @@ impl SkyContext {
             region: Region::Behind,
         }
     }
+
+    /// Whether both shares draw something here: the point is in front of a window that has
+    /// a technique, and `0 < alpha < 1`. There `Mixture::EachShare` draws from each.
+    pub fn both_shares_draw(&self) -> bool {
+        self.uses_windows && !self.terms.is_empty() && self.alpha > 0.0 && self.alpha < 1.0
+    }
 }
 
 impl Default for SkyContext {
@@ -234,15 +240,31 @@ impl SkySampler {
         u_technique: f32,
         u: Vec2,
     ) -> Option<SkySample> {
-        let env = scene.environment()?;
-        let x = ctx.x;
         // The share (environment or windows) is picked by `u.x` ([`split_share`]), so that
         // under Sobol' points the count of draws that find the sun is stratified in each.
-        // `u_technique` picks the window among several.
         let environment_share = if ctx.uses_windows { ctx.alpha } else { 1.0 };
-        let (technique, drawn, (wi, technique_pdf)) = match split_share(u, environment_share) {
-            (true, u) => (SkyTechnique::Environment, None, env.sample(u)?),
-            (false, u) => {
+        let (from_environment, u) = split_share(u, environment_share);
+        self.sample_share(scene, ctx, from_environment, u_technique, u)
+    }
+
+    /// A direction from one share of the mixture with `u` as it is: the environment's
+    /// (`from_environment`) or the windows', `u_technique` picking the window among several.
+    /// Its pdf is the whole mixture's, whichever share drew it; one sample from each share,
+    /// each weighted by its share (`alpha`, `1 − alpha`), estimates the same integral
+    /// (`docs/method.md` §9.2, `Mixture::EachShare`).
+    pub fn sample_share(
+        &self,
+        scene: &impl LightSet,
+        ctx: &SkyContext,
+        from_environment: bool,
+        u_technique: f32,
+        u: Vec2,
+    ) -> Option<SkySample> {
+        let env = scene.environment()?;
+        let x = ctx.x;
+        let (technique, drawn, (wi, technique_pdf)) = match from_environment {
+            true => (SkyTechnique::Environment, None, env.sample(u)?),
+            false => {
                 let term = pick_by_weight(&ctx.terms, |t| t.weight, u_technique)?;
                 let window = &scene.windows()[term.window];
                 let sampled = match term.technique {

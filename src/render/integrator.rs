@@ -601,6 +601,38 @@ impl<'a> Integrator<'a> {
         let start = timed.then(Instant::now);
         let mut ctx = SkyContext::new();
         self.sky.fill_context(self.scene, s.x, &mut ctx);
+        if self.settings.mixture == Mixture::EachShare && ctx.both_shares_draw() {
+            // One sample from each share, each weighted by its share (as for area lights).
+            let samples = [(true, ctx.alpha), (false, 1.0 - ctx.alpha)].map(|(env, share)| {
+                let sample = self.sky.sample_share(self.scene, &ctx, env, u_technique, u);
+                (sample, share)
+            });
+            if let Some(start) = start {
+                let spent = start.elapsed().saturating_sub(timer_overhead());
+                stats.sampling_ns += spent.as_nanos() as u64 * TIMING_STRIDE;
+            }
+            stats.count_region(ctx.region);
+            let mut l = Vec3::ZERO;
+            for (sample, share) in samples {
+                let Some(sample) = sample else {
+                    stats.empty_samples += 1;
+                    continue;
+                };
+                stats.count_technique(sample.technique.technique());
+                let light_pdf = env_prob * sample.pdf;
+                l += share
+                    * Self::weighted(
+                        tracer,
+                        s,
+                        sample.wi,
+                        sample.le,
+                        light_pdf,
+                        f32::INFINITY,
+                        stats,
+                    );
+            }
+            return l;
+        }
         let sample = self.sky.sample(self.scene, &ctx, u_technique, u);
         if let Some(start) = start {
             let spent = start.elapsed().saturating_sub(timer_overhead());
