@@ -1,6 +1,7 @@
 //! The path tracer: next-event estimation through the portal method, combined with BSDF
 //! sampling by multiple importance sampling.
 
+use arrayvec::ArrayVec;
 use glam::Vec3;
 use std::time::Instant;
 
@@ -8,7 +9,7 @@ use super::stats::{Stats, TIMING_STRIDE, timer_overhead};
 use crate::asset::desc::AlphaMode;
 use crate::light::area::LightPoint;
 use crate::light::estimator::{LightContext, LightSample, LightSampler, PickedLight};
-use crate::light::sky::{SkyContext, SkySampler};
+use crate::light::sky::{SkyContext, SkySample, SkySampler};
 use crate::light::{LightSet, Mixture, Strategy, Technique};
 use crate::material::Material;
 use crate::sampling::{Frame, Sampler, SamplerKind, power_heuristic};
@@ -601,39 +602,18 @@ impl<'a> Integrator<'a> {
         let start = timed.then(Instant::now);
         let mut ctx = SkyContext::new();
         self.sky.fill_context(self.scene, s.x, &mut ctx);
+        // One sample of the mixture, or one from each share weighted by it (as for area lights).
+        let mut samples: ArrayVec<(Option<SkySample>, f32), 2> = ArrayVec::new();
         if self.settings.mixture == Mixture::EachShare && ctx.both_shares_draw() {
-            // One sample from each share, each weighted by its share (as for area lights).
-            let samples = [(true, ctx.alpha), (false, 1.0 - ctx.alpha)].map(|(env, share)| {
-                let sample = self.sky.sample_share(self.scene, &ctx, env, u_technique, u);
-                (sample, share)
-            });
-            if let Some(start) = start {
-                let spent = start.elapsed().saturating_sub(timer_overhead());
-                stats.sampling_ns += spent.as_nanos() as u64 * TIMING_STRIDE;
+            for (from_environment, share) in [(true, ctx.alpha), (false, 1.0 - ctx.alpha)] {
+                let sample =
+                    self.sky
+                        .sample_share(self.scene, &ctx, from_environment, u_technique, u);
+                samples.push((sample, share));
             }
-            stats.count_region(ctx.region);
-            let mut l = Vec3::ZERO;
-            for (sample, share) in samples {
-                let Some(sample) = sample else {
-                    stats.empty_samples += 1;
-                    continue;
-                };
-                stats.count_technique(sample.technique.technique());
-                let light_pdf = env_prob * sample.pdf;
-                l += share
-                    * Self::weighted(
-                        tracer,
-                        s,
-                        sample.wi,
-                        sample.le,
-                        light_pdf,
-                        f32::INFINITY,
-                        stats,
-                    );
-            }
-            return l;
+        } else {
+            samples.push((self.sky.sample(self.scene, &ctx, u_technique, u), 1.0));
         }
-        let sample = self.sky.sample(self.scene, &ctx, u_technique, u);
         if let Some(start) = start {
             let spent = start.elapsed().saturating_sub(timer_overhead());
             stats.sampling_ns += spent.as_nanos() as u64 * TIMING_STRIDE;
@@ -643,21 +623,26 @@ impl<'a> Integrator<'a> {
         } else {
             stats.no_portal += 1;
         }
-        let Some(sample) = sample else {
-            stats.empty_samples += 1;
-            return Vec3::ZERO;
-        };
-        stats.count_technique(sample.technique.technique());
-        let light_pdf = env_prob * sample.pdf;
-        Self::weighted(
-            tracer,
-            s,
-            sample.wi,
-            sample.le,
-            light_pdf,
-            f32::INFINITY,
-            stats,
-        )
+        let mut l = Vec3::ZERO;
+        for (sample, share) in samples {
+            let Some(sample) = sample else {
+                stats.empty_samples += 1;
+                continue;
+            };
+            stats.count_technique(sample.technique.technique());
+            let light_pdf = env_prob * sample.pdf;
+            l += share
+                * Self::weighted(
+                    tracer,
+                    s,
+                    sample.wi,
+                    sample.le,
+                    light_pdf,
+                    f32::INFINITY,
+                    stats,
+                );
+        }
+        l
     }
 
     /// A light sample's contribution, weighted against BSDF sampling by the power heuristic.
