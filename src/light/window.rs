@@ -63,31 +63,21 @@ impl Window {
         desc_index: usize,
         environment: Option<&Environment>,
     ) -> Result<Window, WindowError> {
-        Self::new_reusing(desc, desc_index, environment, &[])
-    }
-
-    /// [`Self::new`], taking the guided table of a window in `built` (made for the same
-    /// environment) whose axes are this one's to within 1e-9 in their cosines (4.5e-5 rad,
-    /// a five-hundredth of the table's finest cell): the table depends on the axes only, not
-    /// on the window's position or size, and a move or a resize in the viewer then costs no
-    /// rebuild (0.3 s of both cores). Any table keeps the technique unbiased, since the draw
-    /// and its pdf both read it through this window's axes; one for nearly the same axes
-    /// samples nearly as well.
-    pub fn new_reusing(
-        desc: &PortalDesc,
-        desc_index: usize,
-        environment: Option<&Environment>,
-        built: &[Window],
-    ) -> Result<Window, WindowError> {
-        let mut window = Self::new_deferred(desc, desc_index, environment, built)?;
+        let mut window = Self::new_deferred(desc, desc_index, environment, &[])?;
         window.build_table(environment);
         Ok(window)
     }
 
-    /// [`Self::new_reusing`] without building a table that no window in `built` has: the
-    /// window then has none until [`Self::build_table`] (the viewer builds it off the UI
-    /// thread), and the antishadow strategy samples it uniformly in its solid angle, an exact
-    /// technique of its own ([`SkyTechnique::of`](super::sky::SkyTechnique::of)).
+    /// [`Self::new`] without building its guided table, taking instead the table of a window
+    /// in `built` (made for the same environment) whose axes are this one's to within 1e-9 in
+    /// their cosines (4.5e-5 rad, a five-hundredth of the table's finest cell): the table
+    /// depends on the axes only, not on the window's position or size, so a move or a resize
+    /// in the viewer costs no rebuild (0.3 s of both cores). Any table keeps the technique
+    /// unbiased, since the draw and its pdf both read it through this window's axes; one for
+    /// nearly the same axes samples nearly as well. Without such a window it has no table until
+    /// [`Self::build_table`] (the viewer builds it off the UI thread), and the antishadow
+    /// strategy samples it uniformly in its solid angle, an exact technique of its own
+    /// ([`SkyTechnique::of`](super::sky::SkyTechnique::of)).
     pub fn new_deferred(
         desc: &PortalDesc,
         desc_index: usize,
@@ -151,7 +141,7 @@ impl Window {
         self.polygon.plane().signed_distance(x) > 0.0
     }
 
-    /// Whether this window and `other` share one guided table (see [`Self::new_reusing`]).
+    /// Whether this window and `other` share one guided table (see [`Self::new_deferred`]).
     pub fn shares_table(&self, other: &Window) -> bool {
         match (&self.guided, &other.guided) {
             (Some(a), Some(b)) => Arc::ptr_eq(a, b),
