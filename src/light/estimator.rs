@@ -21,12 +21,12 @@ use super::area::{AreaLight, LightPoint};
 use super::portal::Portal;
 use super::punctual::Lamp;
 use super::{LightSet, Strategy, Technique, split_share};
-use crate::sampling::Distribution1D;
 use crate::sampling::polygon::{
     Cut, Plane, Verts, clip_convex_into, convex_hull_in_plane, merge_close,
     sample_polygon_area_ordered,
 };
 use crate::sampling::spherical::SphericalPolygon;
+use crate::sampling::{Distribution1D, pick_by_weight};
 
 /// The most portals one shading point can use for one light.
 pub const MAX_TERMS: usize = 8;
@@ -431,21 +431,12 @@ impl LightSampler {
         let term = if from_light_share {
             None
         } else {
-            // The term among the others by weight (the last one if rounding runs past them).
-            let mut v = u_technique * other;
-            let mut picked = None;
-            for t in ctx
+            // The term among the others by weight (their weights sum to `other`).
+            let others = ctx
                 .terms()
                 .iter()
-                .filter(|t| t.technique != Technique::Light)
-            {
-                picked = Some(t);
-                if v < t.weight {
-                    break;
-                }
-                v -= t.weight;
-            }
-            Some(picked?)
+                .filter(|t| t.technique != Technique::Light);
+            Some(pick_by_weight(others, |t| t.weight, u_technique * other)?)
         };
         let technique = term.map_or(Technique::Light, |t| t.technique);
         let (wi, hit, technique_pdf) = match (technique, term) {

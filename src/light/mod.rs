@@ -20,6 +20,8 @@ use portal::Portal;
 use punctual::Lamp;
 use window::Window;
 
+use crate::sampling::ONE_BELOW;
+
 /// A scene's lights and the portals onto them: all that light sampling reads. The scene
 /// implements it, so this layer never needs to know what a scene is.
 pub trait LightSet {
@@ -38,9 +40,6 @@ pub trait LightSet {
         &[]
     }
 }
-
-/// The largest f32 below 1: a stretched uniform number stays in [0, 1).
-const ONE_BELOW: f32 = 1.0 - f32::EPSILON / 2.0;
 
 /// Picks the light's share (probability `alpha`) or the portals' by `u.x`, and stretches `u.x`
 /// back to a uniform number in [0, 1): `(true, u')` for the light's share. Both shares then

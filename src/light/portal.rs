@@ -127,10 +127,10 @@ impl Portal {
         if plane.signed_distance(x) <= 0.0 {
             return None;
         }
-        let (v, c) = (self.polygon.vertices(), self.polygon.centroid());
+        let c = self.polygon.centroid();
         let mut cut = Cut::new();
-        for i in 0..v.len() {
-            let edge = Plane::through(x, v[i], v[if i + 1 == v.len() { 0 } else { i + 1 }])?;
+        for (a, b) in self.polygon.edges() {
+            let edge = Plane::through(x, a, b)?;
             let edge = if edge.signed_distance(c) < 0.0 {
                 edge.flipped()
             } else {

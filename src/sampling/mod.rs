@@ -147,15 +147,26 @@ fn splitmix64(x: u64) -> u64 {
 
 /// The item whose share of `[0, 1)` holds `v`, the shares being `weight(item)` in order; the
 /// last one when round-off leaves `v` just past them all.
-pub fn pick_by_weight<T>(items: &[T], weight: impl Fn(&T) -> f32, mut v: f32) -> Option<&T> {
-    let picked = items.iter().find(|t| {
-        let w = weight(t);
-        let hit = v < w;
+#[inline(always)]
+pub fn pick_by_weight<'a, T: 'a>(
+    items: impl IntoIterator<Item = &'a T>,
+    weight: impl Fn(&T) -> f32,
+    mut v: f32,
+) -> Option<&'a T> {
+    let mut last = None;
+    for item in items {
+        let w = weight(item);
+        if v < w {
+            return Some(item);
+        }
         v -= w;
-        hit
-    });
-    picked.or(items.last())
+        last = Some(item);
+    }
+    last
 }
+
+/// The largest f32 below 1: a stretched uniform number stays in [0, 1).
+pub const ONE_BELOW: f32 = 1.0 - f32::EPSILON / 2.0;
 
 /// `(v_i, v_{i+1})` around a closed polygon, the last vertex paired with the first. Hot loops
 /// use this rather than indexing by `(i + 1) % n`, whose integer division costs more than the

@@ -456,9 +456,6 @@ pub fn sample_polygon_area(vertices: &[Vec3], u: Vec2) -> Vec3 {
 /// Half-spaces whose intersection [`sample_polygon_area_ordered`] draws from last.
 pub type Cut = ArrayVec<Plane, { MAX_POLYGON_VERTICES + 1 }>;
 
-/// The largest f32 below 1: a stretched uniform number stays in [0, 1).
-const ONE_BELOW: f32 = 1.0 - f32::EPSILON / 2.0;
-
 /// A uniform point on the convex polygon `vertices`, of density `1 / area` like
 /// [`sample_polygon_area`], drawn in an order: the part outside the intersection of the
 /// half-spaces `cut` (`signed_distance ≥ 0` inside), in convex pieces, from the lowest `u.x`,
@@ -470,17 +467,17 @@ const ONE_BELOW: f32 = 1.0 - f32::EPSILON / 2.0;
 pub fn sample_polygon_area_ordered(vertices: &[Vec3], cut: &[Plane], u: Vec2) -> Vec3 {
     // Walk the pieces in order, each one's area the difference of the inside's before and
     // after its plane, and stop at the one `u.x` falls in (most draws stop early).
-    let mut target = u.x * polygon_area(vertices);
+    let mut area = polygon_area(vertices);
+    let mut target = u.x * area;
     let mut inside: Verts = Verts::new();
     inside.extend(vertices.iter().copied());
-    let mut area = polygon_area(&inside);
     for plane in cut {
         let next = clip_by_plane(&inside, *plane);
         let next_area = polygon_area(&next);
         let a = area - next_area;
         if a > 0.0 && target < a {
             let piece = clip_by_plane(&inside, plane.flipped());
-            let ux = (target / a).clamp(0.0, ONE_BELOW);
+            let ux = (target / a).clamp(0.0, super::ONE_BELOW);
             return sample_polygon_area(&piece, Vec2::new(ux, u.y));
         }
         target -= a.max(0.0);
@@ -490,7 +487,7 @@ pub fn sample_polygon_area_ordered(vertices: &[Vec3], cut: &[Plane], u: Vec2) ->
         // Rounding ran past the last piece with area: the plain draw, same density.
         return sample_polygon_area(vertices, u);
     }
-    let ux = (target / area).clamp(0.0, ONE_BELOW);
+    let ux = (target / area).clamp(0.0, super::ONE_BELOW);
     sample_polygon_area(&inside, Vec2::new(ux, u.y))
 }
 
