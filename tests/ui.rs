@@ -12,7 +12,7 @@ use portalview::light::{Mixture, Strategy};
 use portalview::sampling::SamplerKind;
 mod ui_common;
 
-use ui_common::{harness_with, serial, step_until};
+use ui_common::{harness_with, save_portals, serial, step_until};
 
 /// The viewer on `scene`, as built for every test here.
 fn harness(scene: &str) -> Harness<'static, PortalViewApp> {
@@ -197,16 +197,7 @@ fn save_then_load_round_trips_the_portals() {
     app.editor.portals[0].alpha = 0.25;
     app.apply_portal_edit();
     let edited = app.editor.portals[0].world_triangles();
-    // Save through the File menu.
-    h.get_by_label("File").click();
-    h.run_steps(2);
-    h.get_by_label("Save portals").click();
-    h.run_steps(2);
-    step_until(&mut h, "saved", |a| !a.is_busy());
-    assert_eq!(
-        h.state().message(),
-        Some(&*format!("saved {}", path.display()))
-    );
+    save_portals(&mut h, &path);
     assert!(!h.state().editor.dirty);
     let reloaded = portalview::scene::Scene::load(&path).unwrap();
     let portal = &reloaded.desc.portals[0];

@@ -14,7 +14,7 @@ use portalview::light::antishadow::Region;
 use portalview::sampling::polygon::ConvexPolygon;
 mod ui_common;
 
-use ui_common::{serial, step_until};
+use ui_common::{click_save_portals, save_portals, serial, step_until};
 
 /// The viewer on `scene` in a window tall enough that the side panel's Portals and
 /// Environment sections are on screen without scrolling (clicks reach only what is shown).
@@ -308,15 +308,7 @@ fn environment_panel_turns_the_sky_off_and_on_and_saves() {
     pose.center += Vec3::new(0.1, 0.0, 0.0);
     app.editor.set_pose(0, pose);
     app.apply_portal_edit();
-    h.get_by_label("File").click();
-    h.run_steps(2);
-    h.get_by_label("Save portals").click();
-    h.run_steps(2);
-    step_until(&mut h, "saved", |a| !a.is_busy());
-    assert_eq!(
-        h.state().message(),
-        Some(&*format!("saved {}", path.display()))
-    );
+    save_portals(&mut h, &path);
     let reloaded = portalview::scene::Scene::load(&path).unwrap();
     let environment = reloaded.desc.environment.clone().unwrap();
     assert_eq!(
@@ -412,15 +404,7 @@ fn a_turned_window_renders_at_once_and_its_table_arrives_later() {
     app.apply_portal_edit();
     assert!(app.is_building());
     let edited = app.editor.portals[0].world_triangles();
-    h.get_by_label("File").click();
-    h.run_steps(2);
-    h.get_by_label("Save portals").click();
-    h.run_steps(2);
-    step_until(&mut h, "saved", |a| !a.is_busy());
-    assert_eq!(
-        h.state().message(),
-        Some(&*format!("saved {}", path.display()))
-    );
+    save_portals(&mut h, &path);
     let saved = portalview::scene::Scene::load(&path).unwrap().desc.portals[0].world_triangles();
     for (a, b) in saved.iter().flatten().zip(edited.iter().flatten()) {
         assert!(a.abs_diff_eq(*b, 1e-4), "saved {a}, edited {b}");
@@ -467,10 +451,7 @@ fn an_environment_edit_builds_in_the_background_and_saves() {
     // edited environment either way): the file has no sky.
     h.get_by_label("Off").click();
     h.step();
-    h.get_by_label("File").click();
-    h.run_steps(2);
-    h.get_by_label("Save portals").click();
-    h.run_steps(2);
+    click_save_portals(&mut h);
     step_until(&mut h, "saved", |a| !a.is_busy() && !a.is_building());
     let reloaded = portalview::scene::Scene::load(&path).unwrap();
     assert!(reloaded.desc.environment.is_none());

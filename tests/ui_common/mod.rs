@@ -3,6 +3,7 @@
 #![allow(dead_code)]
 
 use egui_kittest::Harness;
+use egui_kittest::kittest::Queryable;
 use portalview::app::PortalViewApp;
 use std::time::{Duration, Instant};
 
@@ -53,4 +54,22 @@ pub fn step_until(
         std::thread::sleep(Duration::from_millis(30));
         h.step();
     }
+}
+
+/// Clicks *File → Save portals*.
+pub fn click_save_portals(h: &mut Harness<'static, PortalViewApp>) {
+    h.get_by_label("File").click();
+    h.run_steps(2);
+    h.get_by_label("Save portals").click();
+    h.run_steps(2);
+}
+
+/// Saves through *File → Save portals* and waits until the viewer reports the save to `path`.
+pub fn save_portals(h: &mut Harness<'static, PortalViewApp>, path: &std::path::Path) {
+    click_save_portals(h);
+    step_until(h, "saved", |a| !a.is_busy());
+    assert_eq!(
+        h.state().message(),
+        Some(&*format!("saved {}", path.display()))
+    );
 }
