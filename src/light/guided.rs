@@ -140,27 +140,33 @@ impl SearchIndex {
     }
 }
 
-/// The first `j` in `0..len` with `value(j) > target` (`len` if none) for a nondecreasing
+/// The first `j` in `from..len` with `value(j) > target` (`len` if none) for a nondecreasing
 /// `value`, given it at every `STRIDE²`-th `j` (`coarse(k) = value(k·STRIDE²)`) and every
-/// `STRIDE`-th (`fine(k) = value(k·STRIDE)`): three short scans.
+/// `STRIDE`-th (`fine(k) = value(k·STRIDE)`): three short scans, the first from the block of
+/// `from` (a draw's answer lies within its box, so the scans skip the entries before it).
 fn first_above(
     target: f64,
+    from: usize,
     len: usize,
     coarse: impl Fn(usize) -> f64,
     fine: impl Fn(usize) -> f64,
     value: impl Fn(usize) -> f64,
 ) -> usize {
+    if from >= len {
+        return len;
+    }
     let (coarse_len, fine_len) = (len.div_ceil(STRIDE * STRIDE), len.div_ceil(STRIDE));
-    let mut b = 0;
+    // Invariant: every `j` in `from..` below the scanned position has `value(j) <= target`.
+    let mut b = from / (STRIDE * STRIDE);
     while b + 1 < coarse_len && coarse(b + 1) <= target {
         b += 1;
     }
-    let mut m = b * STRIDE;
+    let mut m = (b * STRIDE).max(from / STRIDE);
     let fine_end = ((b + 1) * STRIDE).min(fine_len);
     while m + 1 < fine_end && fine(m + 1) <= target {
         m += 1;
     }
-    let mut j = m * STRIDE;
+    let mut j = (m * STRIDE).max(from);
     let end = ((m + 1) * STRIDE).min(len);
     while j < end && value(j) <= target {
         j += 1;
@@ -174,6 +180,10 @@ fn first_above(
 pub struct GuidedBox {
     pub(crate) alpha: [f64; 2],
     pub(crate) beta: [f64; 2],
+    /// The cells of `α0`, `α1` and `β0`, `β1` and the fractions of them below the angles:
+    /// found once per point, for `Z` and for every draw.
+    alpha_cells: [(usize, f64); 2],
+    beta_cells: [(usize, f64); 2],
     integral: f64,
 }
 
@@ -345,8 +355,11 @@ impl GuidedTable {
     /// The integral of `T` over `[−π/2, α] × [−π/2, β]`: bilinear in the summed-area table,
     /// which is exact for a piecewise-constant density.
     pub fn integral_to(&self, alpha: f64, beta: f64) -> f64 {
-        let (c, fa) = self.alpha.locate(alpha);
-        let (r, fb) = self.beta.locate(beta);
+        self.integral_at(self.alpha.locate(alpha), self.beta.locate(beta))
+    }
+
+    /// [`Self::integral_to`] at located angles: `(c, fa)` in `α`, `(r, fb)` in `β`.
+    fn integral_at(&self, (c, fa): (usize, f64), (r, fb): (usize, f64)) -> f64 {
         let m = self.alpha.cells() + 1;
         let (lo, hi) = (&self.summed[r * m + c..], &self.summed[(r + 1) * m + c..]);
         let (s00, s10, s01, s11) = (lo[0], lo[1], hi[0], hi[1]);
@@ -355,13 +368,18 @@ impl GuidedTable {
 
     /// The box `[α0, α1] × [β0, β1]` with its integral (`None` if it is empty).
     pub fn guided_box(&self, alpha: [f64; 2], beta: [f64; 2]) -> Option<GuidedBox> {
-        let integral = self.integral_to(alpha[1], beta[1])
-            - self.integral_to(alpha[0], beta[1])
-            - self.integral_to(alpha[1], beta[0])
-            + self.integral_to(alpha[0], beta[0]);
+        let alpha_cells = alpha.map(|a| self.alpha.locate(a));
+        let beta_cells = beta.map(|b| self.beta.locate(b));
+        let [a0, a1] = alpha_cells;
+        let [b0, b1] = beta_cells;
+        let integral =
+            self.integral_at(a1, b1) - self.integral_at(a0, b1) - self.integral_at(a1, b0)
+                + self.integral_at(a0, b0);
         (integral > 0.0 && integral.is_finite()).then_some(GuidedBox {
             alpha,
             beta,
+            alpha_cells,
+            beta_cells,
             integral,
         })
     }
@@ -369,7 +387,7 @@ impl GuidedTable {
     /// Draws `(α, β)` in the box with density `T / Z`: the angles, and `T` there.
     pub fn sample(&self, b: &GuidedBox, u: [f64; 2]) -> Option<(f64, f64, f64)> {
         let (alpha, c) = self.sample_alpha(b, u[0])?;
-        let (beta, r) = self.sample_beta(c, b.beta, u[1])?;
+        let (beta, r) = self.sample_beta(c, b, u[1])?;
         Some((alpha, beta, self.weight(c, r)))
     }
 
@@ -378,8 +396,7 @@ impl GuidedTable {
     /// `β1` ([`first_above`]), then a linear step within the column. The angle and its column.
     fn sample_alpha(&self, b: &GuidedBox, u: f64) -> Option<(f64, usize)> {
         let m = self.alpha.cells() + 1;
-        let (r0, g0) = self.beta.locate(b.beta[0]);
-        let (r1, g1) = self.beta.locate(b.beta[1]);
+        let [(r0, g0), (r1, g1)] = b.beta_cells;
         // M at column edge c from the rows around β0 and β1: the integral over α < edge c,
         // β0 < β < β1; the index's rows give it at every STRIDE-th and STRIDE²-th edge.
         let marginal_in = |rows: [&[f64]; 4], c: usize| {
@@ -391,14 +408,14 @@ impl GuidedTable {
         let fine = around.map(|r| self.summed_index.fine(r));
         let coarse = around.map(|r| self.summed_index.coarse(r));
         let marginal = |c: usize| marginal_in(rows, c);
-        let (c0, f0) = self.alpha.locate(b.alpha[0]);
-        let c1 = self.alpha.cell(b.alpha[1]);
+        let [(c0, f0), (c1, _)] = b.alpha_cells;
         let at_start = marginal(c0) + f0 * (marginal(c0 + 1) - marginal(c0));
         let target = at_start + u * b.integral;
         // The first column in [c0, c1] whose upper edge's M passes the target (else c1).
         let above = first_above(
             target,
-            m,
+            c0 + 1,
+            c1 + 2,
             |k| marginal_in(coarse, k),
             |k| marginal_in(fine, k),
             marginal,
@@ -416,18 +433,24 @@ impl GuidedTable {
     }
 
     /// Inverts column `c`'s CDF in `β` within `[β0, β1]`: the angle and its row.
-    fn sample_beta(&self, c: usize, beta: [f64; 2], u: f64) -> Option<(f64, usize)> {
+    fn sample_beta(&self, c: usize, b: &GuidedBox, u: f64) -> Option<(f64, usize)> {
+        let (beta, [(r0, g0), (r1, g1)]) = (b.beta, b.beta_cells);
         let mb = self.beta.cells() + 1;
         let cdf = &self.column_cdf[c * mb..(c + 1) * mb];
-        let (r0, g0) = self.beta.locate(beta[0]);
-        let (r1, g1) = self.beta.locate(beta[1]);
         let f0 = cdf[r0] + g0 * (cdf[r0 + 1] - cdf[r0]);
         let f1 = cdf[r1] + g1 * (cdf[r1 + 1] - cdf[r1]);
         let target = f0 + u * (f1 - f0);
         // The first row in [r0, r1] whose upper edge's running integral passes the target
         // (else r1).
         let (fine, coarse) = (self.column_index.fine(c), self.column_index.coarse(c));
-        let above = first_above(target, mb, |k| coarse[k], |k| fine[k], |j| cdf[j]);
+        let above = first_above(
+            target,
+            r0 + 1,
+            r1 + 2,
+            |k| coarse[k],
+            |k| fine[k],
+            |j| cdf[j],
+        );
         let r = above.max(r0 + 1).min(r1 + 1) - 1;
         let e0 = self.beta.edges[r];
         let start = beta[0].max(e0);
@@ -561,10 +584,11 @@ mod tests {
         );
     }
 
-    /// The three-scan search finds what a binary search over the whole sequence finds, for
-    /// every target between and beyond the values, sequence lengths around the strides, and
-    /// runs of equal values. Negative case: an index of other values (the sequence halved)
-    /// in front of the same last scan gives other answers.
+    /// The three-scan search from `from` finds what a binary search over the whole sequence
+    /// finds, raised to `from`, for every target between and beyond the values, sequence
+    /// lengths around the strides, starts in every block, and runs of equal values. Negative
+    /// case: an index of other values (the sequence halved) in front of the same last scan
+    /// gives other answers.
     #[test]
     fn the_indexed_search_finds_the_first_value_above() {
         let mut rng = Rng::new(9, 0);
@@ -583,17 +607,137 @@ mod tests {
             let (fine, coarse) = (index.fine(0), index.coarse(0));
             let halved: Vec<f64> = values.iter().map(|x| 0.5 * x).collect();
             let wrong = SearchIndex::new(&halved, 1, len);
-            for t in 0..200 {
-                let target = -0.5 + (v + 1.0) * t as f64 / 199.0;
-                let expected = values.partition_point(|&x| x <= target);
-                let found = first_above(target, len, |k| coarse[k], |k| fine[k], |j| values[j]);
-                assert_eq!(found, expected, "len {len}, target {target}");
-                let (wf, wc) = (wrong.fine(0), wrong.coarse(0));
-                wrong_index_differs |=
-                    first_above(target, len, |k| wc[k], |k| wf[k], |j| values[j]) != expected;
+            let starts = [0, 1, 7, 8, 9, 63, 64, 65, 130, len - 1, len, len + 3];
+            for from in starts {
+                // A shorter end too: the draws search up to their box's last cell.
+                for end in [len, len.saturating_sub(5).max(1)] {
+                    for t in 0..200 {
+                        let target = -0.5 + (v + 1.0) * t as f64 / 199.0;
+                        let below = values[..end].partition_point(|&x| x <= target);
+                        let expected = below.max(from.min(end));
+                        let found = first_above(
+                            target,
+                            from,
+                            end,
+                            |k| coarse[k],
+                            |k| fine[k],
+                            |j| values[j],
+                        );
+                        assert_eq!(
+                            found, expected,
+                            "len {len}, from {from}, end {end}, {target}"
+                        );
+                        let (wf, wc) = (wrong.fine(0), wrong.coarse(0));
+                        let misled =
+                            first_above(target, from, end, |k| wc[k], |k| wf[k], |j| values[j]);
+                        wrong_index_differs |= misled != expected;
+                    }
+                }
             }
         }
         assert!(wrong_index_differs, "a wrong index was never told apart");
+    }
+
+    /// The draw as it was first written, the oracle for the faster one: every angle located
+    /// again, and each search a binary search over the whole row or column.
+    fn reference_sample(t: &GuidedTable, b: &GuidedBox, u: [f64; 2]) -> Option<(f64, f64, f64)> {
+        let m = t.alpha.cells() + 1;
+        let (r0, g0) = t.beta.locate(b.beta[0]);
+        let (r1, g1) = t.beta.locate(b.beta[1]);
+        let s = |r: usize, c: usize| t.summed[r * m + c];
+        let marginal = |c: usize| {
+            (s(r1, c) + g1 * (s(r1 + 1, c) - s(r1, c)))
+                - (s(r0, c) + g0 * (s(r0 + 1, c) - s(r0, c)))
+        };
+        let (c0, f0) = t.alpha.locate(b.alpha[0]);
+        let c1 = t.alpha.cell(b.alpha[1]);
+        let target = marginal(c0) + f0 * (marginal(c0 + 1) - marginal(c0)) + u[0] * b.integral;
+        let above = (0..m)
+            .collect::<Vec<_>>()
+            .partition_point(|&j| marginal(j) <= target);
+        let c = above.max(c0 + 1).min(c1 + 1) - 1;
+        let (e0, width) = (t.alpha.edges[c], t.alpha.width(c));
+        let (m0, m1) = (marginal(c), marginal(c + 1));
+        let density = (m1 - m0) / width;
+        if !(density > 0.0 && density.is_finite()) {
+            return None;
+        }
+        let start = b.alpha[0].max(e0);
+        let end = b.alpha[1].min(e0 + width).max(start);
+        let alpha = (e0 + (target - m0) / density).clamp(start, end);
+        let mb = t.beta.cells() + 1;
+        let cdf = &t.column_cdf[c * mb..(c + 1) * mb];
+        let f = cdf[r0] + g0 * (cdf[r0 + 1] - cdf[r0]);
+        let target = f + u[1] * (cdf[r1] + g1 * (cdf[r1 + 1] - cdf[r1]) - f);
+        let r = cdf
+            .partition_point(|&x| x <= target)
+            .max(r0 + 1)
+            .min(r1 + 1)
+            - 1;
+        let e0 = t.beta.edges[r];
+        let start = b.beta[0].max(e0);
+        let end = b.beta[1].min(t.beta.edges[r + 1]).max(start);
+        let weight = t.weight(c, r);
+        let beta = (e0 + (target - cdf[r]) / weight).clamp(start, end);
+        (weight > 0.0).then_some((alpha, beta, weight))
+    }
+
+    /// The draw (boxes located once, searches from the box's first cell) returns bit for bit
+    /// what the reference draw returns, for boxes of every size around and away from the sun
+    /// and a sky without refinement; `Z` equals the four `integral_to` at the box's corners.
+    /// Negative case: the draw given the cells of a box shifted by half a fine cell in `β` (stale
+    /// located cells) returns other draws.
+    #[test]
+    fn draws_equal_the_reference_draws_bit_for_bit() {
+        let mut rng = Rng::new(12, 0);
+        let mut shifted_differs = false;
+        for (t, centre) in [
+            (table(1000.0), (0.2f64.atan(), 0.1f64.atan())),
+            (table(1.0), (-0.7, 0.4)),
+        ] {
+            for _ in 0..60 {
+                let half = |r: f32| 0.002 + 0.6 * f64::from(r).powi(2);
+                let (ha, hb) = (half(rng.uniform()), half(rng.uniform()));
+                let shift = |r: f32| 0.3 * (f64::from(r) - 0.5);
+                let ca = centre.0 + shift(rng.uniform());
+                let cb = centre.1 + shift(rng.uniform());
+                let clip = |x: f64| x.clamp(-1.5, 1.5);
+                let (alpha, beta) = (
+                    [clip(ca - ha), clip(ca + ha)],
+                    [clip(cb - hb), clip(cb + hb)],
+                );
+                let Some(b) = t.guided_box(alpha, beta) else {
+                    panic!("empty box {alpha:?} × {beta:?}");
+                };
+                let z = t.integral_to(alpha[1], beta[1])
+                    - t.integral_to(alpha[0], beta[1])
+                    - t.integral_to(alpha[1], beta[0])
+                    + t.integral_to(alpha[0], beta[0]);
+                assert_eq!(b.integral().to_bits(), z.to_bits());
+                let fine = 0.5 * BASE_WIDTH / GUIDED_REFINE as f64;
+                let shifted = t.guided_box(alpha, [beta[0] + fine, beta[1] + fine]);
+                for _ in 0..200 {
+                    let v = rng.uniform2();
+                    let u = [f64::from(v.x), f64::from(v.y)];
+                    let got = t.sample(&b, u).map(|(a, c, w)| [a, c, w].map(f64::to_bits));
+                    let want =
+                        reference_sample(&t, &b, u).map(|(a, c, w)| [a, c, w].map(f64::to_bits));
+                    assert_eq!(got, want, "box {alpha:?} × {beta:?}, u {u:?}");
+                    if let Some(s) = &shifted {
+                        // The box's own angles with the cells of the shifted box.
+                        let stale = GuidedBox {
+                            beta_cells: s.beta_cells,
+                            ..b
+                        };
+                        let off = t
+                            .sample(&stale, u)
+                            .map(|(a, c, w)| [a, c, w].map(f64::to_bits));
+                        shifted_differs |= off != want;
+                    }
+                }
+            }
+        }
+        assert!(shifted_differs, "stale cells were never told apart");
     }
 
     /// No direction in the sun lies in a cell valued below the sun (such a cell would draw it
