@@ -53,7 +53,21 @@ struct WindowFrame {
     out: DVec3,
     /// The window's bounding box in `(s, t)` about `centre`: `[s_min, s_max, t_min, t_max]`.
     bounds: [f64; 4],
+    /// Whether the window fills its bounding box (a rectangle, to [`FILLS_BOX`] of its area):
+    /// then the guided technique's support is the box itself, and neither its draw nor its pdf
+    /// needs the inside test.
+    fills_box: bool,
 }
+
+/// A window whose area is at least this share of its bounding box's is taken as filling it.
+/// Any share keeps the guided technique exact (its draw and its pdf then both take the box as
+/// its support); a sliver of the box outside the window costs only the draws that land in it.
+const FILLS_BOX: f64 = 1.0 - 1e-4;
+
+/// Slack of the pdf's box test per unit of the hit's distance over the cosine plus the box's
+/// size (directions are `f32`, as for [`ConvexPolygon::ray_through`]): a direction drawn near
+/// the box's edge that rounding moves a hair outside still counts as in it.
+const BOX_SLACK: f64 = 8.0 * f32::EPSILON as f64;
 
 impl Window {
     /// Validates `desc`, the `desc_index`-th portal of its scene. Its front is its winding's
@@ -149,6 +163,12 @@ impl Window {
         }
     }
 
+    /// Whether the window fills its bounding box in its frame (a rectangle), so that the guided
+    /// technique's support is the box and its draw and pdf skip the inside test.
+    pub fn fills_box(&self) -> bool {
+        self.frame.fills_box
+    }
+
     /// Whether the guided technique has a table (an image environment, once it is built).
     pub fn is_guided(&self) -> bool {
         self.guided.is_some()
@@ -195,38 +215,45 @@ impl Window {
     /// A direction through the window drawn proportional to the table within the box, with its
     /// solid-angle pdf `T(α, β) / (Z · J(α, β))`. The box bounds the window; a draw that falls
     /// in the box but outside the window is no sample (`None`), so the density is that of the
-    /// box restricted to the window (it integrates to the window's share of `Z`).
+    /// box restricted to the window (it integrates to the window's share of `Z`). A window that
+    /// fills its box ([`Self::fills_box`]) skips the inside test: its support is the box.
     pub fn sample_guided(&self, b: &GuidedBox, x: Vec3, u: Vec2) -> Option<(Vec3, f32)> {
         let table = self.guided.as_ref()?;
         let (alpha, beta, weight) = table.sample(b, [f64::from(u.x), f64::from(u.y)])?;
         let (ta, tb) = (alpha.tan(), beta.tan());
         let f = &self.frame;
         let wi = (ta * f.s + tb * f.t + f.out).normalize().as_vec3();
-        self.through(x, wi)?;
+        if !f.fills_box {
+            self.through(x, wi)?;
+        }
         let pdf = weight / (b.integral() * jacobian(ta, tb));
         (pdf > 0.0 && pdf.is_finite()).then_some((wi, pdf as f32))
     }
 
     /// The solid-angle pdf of [`Self::sample_guided`] for `wi`: 0 unless it passes through the
-    /// window.
+    /// window (through the box, for a window that fills it).
     pub fn guided_pdf(&self, b: &GuidedBox, x: Vec3, wi: Vec3) -> f32 {
         let Some(table) = self.guided.as_ref() else {
             return 0.0;
         };
-        if self.through(x, wi).is_none() {
+        let f = &self.frame;
+        if !f.fills_box && self.through(x, wi).is_none() {
             return 0.0;
         }
-        let f = &self.frame;
         let w = wi.as_dvec3();
         let dz = w.dot(f.out);
         if dz <= 0.0 {
             return 0.0;
         }
         let (ta, tb) = (w.dot(f.s) / dz, w.dot(f.t) / dz);
+        if f.fills_box && !f.box_holds(x, ta, tb) {
+            return 0.0;
+        }
+        let (alpha, beta) = (ta.atan(), tb.atan());
         // The window lies inside the box: a direction through it that rounding puts a hair
         // outside takes the box's edge cell.
-        let alpha = ta.atan().clamp(b.alpha[0], b.alpha[1]);
-        let beta = tb.atan().clamp(b.beta[0], b.beta[1]);
+        let alpha = alpha.clamp(b.alpha[0], b.alpha[1]);
+        let beta = beta.clamp(b.beta[0], b.beta[1]);
         (table.density(alpha, beta) / (b.integral() * jacobian(ta, tb))) as f32
     }
 }
@@ -271,6 +298,7 @@ impl WindowFrame {
                         t,
                         out,
                         bounds,
+                        fills_box: f64::from(polygon.area()) >= FILLS_BOX * area,
                     },
                 ));
             }
@@ -284,8 +312,23 @@ impl WindowFrame {
                 t: out.cross(s),
                 out,
                 bounds: [0.0; 4],
+                fills_box: false,
             }
         })
+    }
+
+    /// Whether the ray from `x` with tangents `(a, b)` (`a = ω·s / ω·out`, likewise `b`) meets
+    /// the window's plane inside the bounding box, to [`BOX_SLACK`]: the inside test of a box.
+    fn box_holds(&self, x: Vec3, a: f64, b: f64) -> bool {
+        let rel = x.as_dvec3() - self.centre;
+        let h = -rel.dot(self.out);
+        let (ps, pt) = (rel.dot(self.s) + h * a, rel.dot(self.t) + h * b);
+        let [s0, s1, t0, t1] = self.bounds;
+        let size = (s1 - s0).max(t1 - t0);
+        // An error δ in the direction moves the hit by about its distance `h·|(a, b, 1)|` times
+        // δ over the cosine `1 / |(a, b, 1)|`: grazing rays need the wider slack.
+        let slack = BOX_SLACK * (h * (1.0 + a * a + b * b) + size);
+        (s0 - slack..=s1 + slack).contains(&ps) && (t0 - slack..=t1 + slack).contains(&pt)
     }
 
     /// The unit direction at `(α, β)`.
