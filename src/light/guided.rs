@@ -61,6 +61,7 @@ impl Axis {
 
     /// The fine cell of angle `a` and the fraction of it below `a`, in O(1): the base interval,
     /// then the cell within it.
+    #[inline]
     fn locate(&self, a: f64) -> (usize, f64) {
         let x = (a + FRAC_PI_2) / BASE_WIDTH;
         let b = (x.max(0.0) as usize).min(GUIDED_BASE_CELLS - 1);
@@ -337,6 +338,7 @@ impl GuidedTable {
     }
 
     /// `T` on cell `(c, r)`: the column's running integral over the cell, over its width.
+    #[inline]
     fn weight(&self, c: usize, r: usize) -> f64 {
         let at = c * (self.beta.cells() + 1) + r;
         (self.column_cdf[at + 1] - self.column_cdf[at]) / self.beta.width(r)
@@ -359,6 +361,7 @@ impl GuidedTable {
     }
 
     /// [`Self::integral_to`] at located angles: `(c, fa)` in `α`, `(r, fb)` in `β`.
+    #[inline]
     fn integral_at(&self, (c, fa): (usize, f64), (r, fb): (usize, f64)) -> f64 {
         let m = self.alpha.cells() + 1;
         let (lo, hi) = (&self.summed[r * m + c..], &self.summed[(r + 1) * m + c..]);
