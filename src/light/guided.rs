@@ -210,14 +210,18 @@ impl GuidedTable {
     /// over it where both of its axes are refined, else its supersamples along the whole axis.
     /// Floored at a millionth of the mean so that every direction through the window can be
     /// drawn.
-    /// Columns are filled in parallel (rayon): the table is rebuilt when a window moves.
+    /// `direction(tan α, tan β)` is the unit direction at `(α, β)` (taking the tangents, so
+    /// that a supersample's two `tan` serve the direction and the Jacobian, and a base cell's
+    /// 3 × 3 supersamples need six).
+    /// Columns are filled in parallel (rayon): the table is rebuilt when a window turns.
     pub fn new(
         direction: impl Fn(f64, f64) -> Vec3 + Sync,
         weight: impl Fn(Vec3) -> f32 + Sync,
     ) -> Self {
         let n = GUIDED_BASE_CELLS;
         let value = |alpha: f64, beta: f64| {
-            f64::from(weight(direction(alpha, beta))) * jacobian(alpha.tan(), beta.tan())
+            let (a, b) = (alpha.tan(), beta.tan());
+            f64::from(weight(direction(a, b))) * jacobian(a, b)
         };
         // The base grid: means, and per base interval of each axis the mass its cells could
         // misplace: the spread of the environment's weight over a cell's supersamples times
@@ -228,17 +232,23 @@ impl GuidedTable {
         let offsets: Vec<f64> = (0..k)
             .map(|i| (i as f64 + 0.5) / k as f64 * BASE_WIDTH)
             .collect();
+        // The supersamples' tangents along either axis (the grid is the same in α and β).
+        let tangents: Vec<f64> = (0..n)
+            .flat_map(|i| {
+                let e0 = -FRAC_PI_2 + i as f64 * BASE_WIDTH;
+                offsets.iter().map(move |o| (e0 + o).tan())
+            })
+            .collect();
         let columns = base.par_chunks_mut(n).zip(misplaced.par_chunks_mut(n));
         columns.enumerate().for_each(|(c, (base, misplaced))| {
-            let a0 = -FRAC_PI_2 + c as f64 * BASE_WIDTH;
+            let ta = &tangents[c * k..(c + 1) * k];
             for r in 0..n {
-                let b0 = -FRAC_PI_2 + r as f64 * BASE_WIDTH;
+                let tb = &tangents[r * k..(r + 1) * k];
                 let (mut sum, mut sum_j, mut lo, mut hi) = (0.0, 0.0, f64::INFINITY, 0.0f64);
-                for da in &offsets {
-                    for db in &offsets {
-                        let (alpha, beta) = (a0 + da, b0 + db);
-                        let w = f64::from(weight(direction(alpha, beta)));
-                        let j = jacobian(alpha.tan(), beta.tan());
+                for &a in ta {
+                    for &b in tb {
+                        let w = f64::from(weight(direction(a, b)));
+                        let j = jacobian(a, b);
                         sum += w * j;
                         sum_j += j;
                         lo = lo.min(w);
@@ -496,7 +506,7 @@ mod tests {
     fn table(sun_radiance: f32) -> GuidedTable {
         let sun = Vec3::new(0.2, 0.1, 1.0).normalize();
         GuidedTable::new(
-            |a, b| Vec3::new(a.tan() as f32, b.tan() as f32, 1.0).normalize(),
+            |a, b| Vec3::new(a as f32, b as f32, 1.0).normalize(),
             |w| {
                 if w.dot(sun) > 0.045f32.cos() {
                     sun_radiance

@@ -331,8 +331,8 @@ impl WindowFrame {
         (s0 - slack..=s1 + slack).contains(&ps) && (t0 - slack..=t1 + slack).contains(&pt)
     }
 
-    /// The unit direction at `(α, β)`.
-    fn direction(&self, alpha: f64, beta: f64) -> DVec3 {
-        (alpha.tan() * self.s + beta.tan() * self.t + self.out).normalize()
+    /// The unit direction at tangents `(a, b) = (tan α, tan β)`.
+    fn direction(&self, a: f64, b: f64) -> DVec3 {
+        (a * self.s + b * self.t + self.out).normalize()
     }
 }
