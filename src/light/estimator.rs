@@ -325,6 +325,23 @@ impl LightSampler {
                 candidates.push((j, region, technique));
             }
         }
+        // One light-technique term (the antiumbra of one portal): weight 1, and the mixture
+        // is light sampling; the general loop below would give the same term.
+        if let [(j, region, Technique::Light)] = candidates[..] {
+            if ctx.slots.is_empty() {
+                ctx.slots.push(PortalTerm::empty());
+            }
+            if let Some(term) = ctx.slots.first_mut() {
+                term.portal = j;
+                term.region = region;
+                term.technique = Technique::Light;
+                term.weight = 1.0;
+                term.projected = false;
+                ctx.count = 1;
+                ctx.region = region;
+                return;
+            }
+        }
         // Weights by the light's solid angle through each portal; one term needs none.
         let several = candidates.len() > 1;
         for (j, region, technique) in candidates {
