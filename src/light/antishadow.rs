@@ -1273,6 +1273,10 @@ mod tests {
 
     #[test]
     fn region_names() {
+        // Statistics index their counts by `region as usize`.
+        for (i, &region) in Region::ALL.iter().enumerate() {
+            assert_eq!(region as usize, i, "{region:?}");
+        }
         let names: Vec<&str> = Region::ALL.iter().map(|r| r.name()).collect();
         assert_eq!(
             names,
