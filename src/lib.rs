@@ -7,17 +7,18 @@
 //! Layers, bottom to top; a module imports only from the layers below it:
 //!
 //! ```text
-//! io, camera, sampling, asset      files, the pinhole camera, warps and polygons, scene descriptions
-//! material, surface, light         the BSDF and its textures at a point; area lights, portals, regions, strategies
-//! scene                            a validated scene ready to trace (triangles, BVH, lights)
-//! render                           integrator, passes, film, statistics, background workers
-//! compare                          metrics, references, equal-time comparison and its worker
-//! app                              the eframe viewer
-//! cli                              command-line parsing and the subcommands (nothing imports it)
+//! io, isa, camera, sampling, asset  files, CPU features, the pinhole camera, warps and polygons, scene descriptions
+//! material, surface, light          the BSDF and its textures at a point; area lights, portals, regions, strategies
+//! scene                             a validated scene ready to trace (triangles, BVH, lights)
+//! render                            integrator, passes, film, statistics, background workers
+//! compare                           metrics, references, equal-time comparison and its worker
+//! app                               the eframe viewer
+//! cli                               command-line parsing and the subcommands (nothing imports it)
 //! ```
 
-// `unsafe` in one place: the tile renderer compiled for AVX2 (x86-64-v3), called only after the
-// CPU was checked for them (`render::render_tile_isa`).
+// `unsafe` in two places: the tile renderer compiled for AVX2 (x86-64-v3) and the BVH's AVX2 node
+// test, each called only after the CPU was checked for them (`render::render_tile_isa`,
+// `scene::bvh::node_hits`).
 #![deny(unsafe_code)]
 
 pub mod app;
@@ -26,6 +27,7 @@ pub mod camera;
 pub mod cli;
 pub mod compare;
 pub mod io;
+pub mod isa;
 pub mod light;
 pub mod material;
 pub mod render;

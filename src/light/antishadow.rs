@@ -11,7 +11,7 @@
 //! edge, or through a vertex that rounding left a hair off the other polygon's plane, would
 //! otherwise tilt by up to 1e-3 rad.
 
-use glam::{DVec3, Vec3};
+use glam::{DVec3, Vec3, Vec4};
 
 use super::hull::{self, HalfSpace, HullKind};
 use crate::sampling::polygon::{ConvexPolygon, MAX_CLIP_VERTICES, Plane, Verts, merge_close_by};
@@ -103,6 +103,111 @@ pub struct AntishadowPlanes {
     /// For a light that is not one planar convex polygon: the planes through its bounding
     /// solid that replace the light-plane, light-overlap and antiantumbra planes (§3.6).
     hull: Option<Box<HullPlanes>>,
+    /// Every plane above in lanes of four, tested at once by [`Self::classify`]; `None` for a
+    /// solid with more than [`PlaneLanes::MAX`] planes, which is classified plane by plane.
+    lanes: Option<PlaneLanes>,
+}
+
+/// The planes of [`AntishadowPlanes::classify`] in structure-of-arrays lanes of four: one
+/// multiply-add chain per four planes, and the signs of all of them as one bit mask, instead
+/// of a branch per plane (the per-point cost that light sampling does not pay). Each lane
+/// computes `(n.x·x + n.y·y) + n.z·z − d` in the order of [`Plane::signed_distance`], so every
+/// sign, and with it every region, is the plane-by-plane one exactly.
+#[derive(Clone, Debug)]
+struct PlaneLanes {
+    /// Plane `i` is lane `i % 4` of chunk `i / 4`, and bit `i` of the masks; plane 0 is the
+    /// portal's (`x` not strictly in front of it is behind).
+    chunks: Vec<PlaneChunk>,
+    /// The planes `x` must be strictly positive on not to be outside.
+    overlap: u64,
+    antiumbra: u64,
+    antiantumbra: u64,
+}
+
+/// Four planes, coordinate by coordinate (the bits of unused lanes are in no group).
+#[derive(Clone, Copy, Debug)]
+struct PlaneChunk {
+    nx: Vec4,
+    ny: Vec4,
+    nz: Vec4,
+    d: Vec4,
+}
+
+impl PlaneLanes {
+    /// The most planes one bit mask holds.
+    const MAX: usize = 64;
+
+    /// Lanes for the portal plane followed by the groups `overlap`, `antiumbra` and
+    /// `antiantumbra`; `None` past [`Self::MAX`] planes.
+    fn new(
+        portal: Plane,
+        overlap: &[&[Plane]],
+        antiumbra: &[Plane],
+        antiantumbra: &[Plane],
+    ) -> Option<Self> {
+        let mut planes = vec![portal];
+        let group = |planes: &mut Vec<Plane>, members: &[Plane]| {
+            let start = planes.len();
+            planes.extend_from_slice(members);
+            (start..planes.len()).fold(0u64, |mask, i| {
+                mask | 1u64.checked_shl(i as u32).unwrap_or(0)
+            })
+        };
+        let mut overlap_mask = 0;
+        for members in overlap {
+            overlap_mask |= group(&mut planes, members);
+        }
+        let antiumbra = group(&mut planes, antiumbra);
+        let antiantumbra = group(&mut planes, antiantumbra);
+        if planes.len() > Self::MAX {
+            return None;
+        }
+        let chunks = planes
+            .chunks(4)
+            .map(|four| {
+                let lane = |f: &dyn Fn(&Plane) -> f32| {
+                    Vec4::from_array(std::array::from_fn(|k| four.get(k).map_or(0.0, f)))
+                };
+                PlaneChunk {
+                    nx: lane(&|q| q.n.x),
+                    ny: lane(&|q| q.n.y),
+                    nz: lane(&|q| q.n.z),
+                    d: lane(&|q| q.d),
+                }
+            })
+            .collect();
+        Some(PlaneLanes {
+            chunks,
+            overlap: overlap_mask,
+            antiumbra,
+            antiantumbra,
+        })
+    }
+
+    /// The region from the signs of all planes at `x` (as [`AntishadowPlanes::classify`]).
+    #[inline(always)]
+    fn classify(&self, x: Vec3) -> Region {
+        let (px, py, pz) = (Vec4::splat(x.x), Vec4::splat(x.y), Vec4::splat(x.z));
+        let mut positive = 0u64;
+        for (k, c) in self.chunks.iter().enumerate() {
+            let s = c.nx * px + c.ny * py + c.nz * pz - c.d;
+            positive |= u64::from(s.cmpgt(Vec4::ZERO).bitmask()) << (4 * k);
+            // Most points behind a portal are known from its plane alone.
+            if k == 0 && positive & 1 == 0 {
+                return Region::Behind;
+            }
+        }
+        let all = |mask: u64| positive & mask == mask;
+        if !all(self.overlap) {
+            Region::Outside
+        } else if all(self.antiumbra) {
+            Region::Antiumbra
+        } else if all(self.antiantumbra) {
+            Region::Antiantumbra
+        } else {
+            Region::Antipenumbra
+        }
+    }
 }
 
 /// The planes of a (portal, solid light) pair beyond those of the portal's edges.
@@ -219,7 +324,9 @@ impl AntishadowPlanes {
             light_overlap: to_f32(&light_overlap),
             scale: scale as f32,
             hull: None,
-        })
+            lanes: None,
+        }
+        .with_lanes())
     }
 
     /// The planes for a light of any shape (`docs/method.md` §3.6): `light_points` are its
@@ -349,7 +456,32 @@ impl AntishadowPlanes {
                 outside: to_vec(&outside),
                 antiantumbra: to_vec(&antiantumbra),
             })),
-        })
+            lanes: None,
+        }
+        .with_lanes())
+    }
+
+    /// The planes in lanes for [`Self::classify`], in the groups of its tests.
+    fn with_lanes(mut self) -> Self {
+        self.lanes = match &self.hull {
+            None => PlaneLanes::new(
+                self.portal_plane,
+                &[
+                    &[self.light_plane],
+                    &self.portal_overlap,
+                    &self.light_overlap,
+                ],
+                &self.antiumbra,
+                &self.antiantumbra,
+            ),
+            Some(hull) => PlaneLanes::new(
+                self.portal_plane,
+                &[&self.portal_overlap, &hull.outside],
+                &self.antiumbra,
+                &hull.antiantumbra,
+            ),
+        };
+        self
     }
 
     /// Whether the light is a solid (§3.6) rather than one planar convex polygon: its clipped
@@ -359,9 +491,20 @@ impl AntishadowPlanes {
     }
 
     /// The region of `x`, in the order of `docs/method.md` §3.3. Points on a plane count as outside the
-    /// volume it bounds; a NaN `x` is [`Region::Behind`]. No allocation.
+    /// volume it bounds; a NaN `x` is [`Region::Behind`]. No allocation. The planes' signs are
+    /// taken four at a time; the region is exactly [`Self::classify_plane_by_plane`]'s.
     #[inline(always)]
     pub fn classify(&self, x: Vec3) -> Region {
+        match &self.lanes {
+            Some(lanes) => lanes.classify(x),
+            None => self.classify_plane_by_plane(x),
+        }
+    }
+
+    /// [`Self::classify`] one plane at a time, leaving as soon as the region is known: for a
+    /// solid with too many planes for the lanes, and the unit test's oracle.
+    #[inline(always)]
+    pub fn classify_plane_by_plane(&self, x: Vec3) -> Region {
         let positive = |q: &Plane| q.signed_distance(x) > 0.0;
         if !positive(&self.portal_plane) {
             return Region::Behind;
@@ -1022,8 +1165,118 @@ mod tests {
         assert!(seen.iter().all(|&c| c > 100), "{seen:?}");
     }
 
+    /// A convex polygon of `n` vertices at sorted random angles on an ellipse about `centre`,
+    /// counter-clockwise around the unit `normal`.
+    fn random_convex(
+        rng: &mut crate::sampling::Rng,
+        centre: Vec3,
+        normal: Vec3,
+        n: usize,
+    ) -> Option<ConvexPolygon> {
+        let t = normal.any_orthonormal_vector();
+        let b = normal.cross(t);
+        let (ra, rb) = (0.1 + rng.uniform(), 0.1 + rng.uniform());
+        let mut angles: Vec<f32> = (0..n)
+            .map(|_| std::f32::consts::TAU * rng.uniform())
+            .collect();
+        angles.sort_by(f32::total_cmp);
+        let points: Vec<Vec3> = angles
+            .iter()
+            .map(|a| centre + ra * a.cos() * t + rb * a.sin() * b)
+            .collect();
+        ConvexPolygon::new(&points).ok()
+    }
+
+    /// The lanes give exactly the plane-by-plane regions, for random polygon pairs (3 to 8
+    /// vertices, tilted, some lights straddling the portal plane) and random solids, at random
+    /// points and at points on the volumes' edges, where rounding decides the signs: the lanes
+    /// must round every signed distance as `Plane::signed_distance` does.
+    #[test]
+    fn lanes_match_plane_by_plane() {
+        use crate::sampling::Rng;
+        let mut rng = Rng::new(17, 18);
+        let random_unit_tilt = |rng: &mut Rng, spread: f32| {
+            Vec3::new(
+                spread * (rng.uniform() - 0.5),
+                1.0,
+                spread * (rng.uniform() - 0.5),
+            )
+            .normalize()
+        };
+        let mut seen = [0usize; 5];
+        let (mut pairs, mut on_edges) = (0, 0);
+        for trial in 0..300 {
+            let portal_normal = random_unit_tilt(&mut rng, 0.8);
+            let light_normal = random_unit_tilt(&mut rng, 1.2);
+            let (np, nl) = (3 + trial % 6, 3 + (trial / 6) % 6);
+            let Some(portal) = random_convex(&mut rng, Vec3::ZERO, portal_normal, np) else {
+                continue;
+            };
+            let depth = if trial % 4 == 0 {
+                0.2
+            } else {
+                0.4 + rng.uniform()
+            };
+            let centre = Vec3::new(rng.uniform() - 0.5, -depth, rng.uniform() - 0.5);
+            let Some(light) = random_convex(&mut rng, centre, light_normal, nl) else {
+                continue;
+            };
+            let solid = trial % 5 == 0;
+            let planes = if solid {
+                let mut corners: Vec<Vec3> = light.vertices().to_vec();
+                corners.extend(light.vertices().iter().map(|&v| v - 0.2 * light_normal));
+                AntishadowPlanes::new_hull(&portal, &corners)
+            } else {
+                AntishadowPlanes::new(&portal, &light)
+            };
+            let Ok(planes) = planes else {
+                continue;
+            };
+            // A solid may have too many planes for the lanes; a polygon pair never has.
+            if planes.lanes.is_none() {
+                assert!(solid, "trial {trial}: no lanes");
+                continue;
+            }
+            pairs += 1;
+            let mut check = |x: Vec3| {
+                let region = planes.classify(x);
+                assert_eq!(
+                    region,
+                    planes.classify_plane_by_plane(x),
+                    "trial {trial} at {x}"
+                );
+                seen[region as usize] += 1;
+            };
+            for _ in 0..200 {
+                check(Vec3::new(
+                    6.0 * (rng.uniform() - 0.5),
+                    3.0 * rng.uniform() - 0.5,
+                    6.0 * (rng.uniform() - 0.5),
+                ));
+            }
+            // Beyond the portal on lines through a portal vertex and a light vertex, and on the
+            // portal's edges: points on planes (to rounding).
+            for &p in portal.vertices() {
+                for &l in planes.light_behind_portal() {
+                    check(p + (0.5 + 2.0 * rng.uniform()) * (p - l));
+                    on_edges += 1;
+                }
+            }
+            for (a, b) in portal.edges() {
+                check(a.lerp(b, rng.uniform()));
+            }
+            check(Vec3::NAN);
+        }
+        assert!(pairs > 200 && on_edges > 5_000, "{pairs} pairs, {on_edges}");
+        assert!(seen.iter().all(|&c| c > 100), "{seen:?}");
+    }
+
     #[test]
     fn region_names() {
+        // Statistics index their counts by `region as usize`.
+        for (i, &region) in Region::ALL.iter().enumerate() {
+            assert_eq!(region as usize, i, "{region:?}");
+        }
         let names: Vec<&str> = Region::ALL.iter().map(|r| r.name()).collect();
         assert_eq!(
             names,

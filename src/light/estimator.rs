@@ -77,6 +77,10 @@ pub struct LightContext {
     pub has_portals: bool,
     /// Whether `x` is in front of a portal of the light (else plain light sampling).
     pub uses_portals: bool,
+    /// Whether the mixture is light sampling alone, `q = p_L`: `x` uses no portal, or every
+    /// term uses the light technique (antiumbra), when `alpha · p_L + (1 − alpha) · Σ_j w_j ·
+    /// p_L` is `p_L` since the weights sum to 1. Sampling and pdf then skip the mixture.
+    light_only: bool,
     /// The terms of the mixture are the first `count` of these; the rest are room kept from
     /// earlier shading points, so that a reused context builds its terms without moving one.
     slots: ArrayVec<PortalTerm, MAX_TERMS>,
@@ -99,6 +103,7 @@ impl LightContext {
             alpha: 1.0,
             has_portals: false,
             uses_portals: false,
+            light_only: true,
             slots: ArrayVec::new(),
             count: 0,
             region: Region::Behind,
@@ -117,6 +122,9 @@ impl LightContext {
     /// the rest draws nothing), else `alpha + (1 − alpha) · Σ_{light terms} w_j`.
     #[inline(always)]
     pub fn light_share(&self) -> (f32, f32) {
+        if self.light_only {
+            return (1.0, 0.0);
+        }
         let (mut light_terms, mut other) = (0.0, 0.0);
         for t in self.terms() {
             if t.technique == Technique::Light {
@@ -139,7 +147,7 @@ impl LightContext {
     /// a mix of regions). There [`Mixture::EachShare`](super::Mixture) draws from each.
     #[inline(always)]
     pub fn both_shares_draw(&self) -> bool {
-        if !self.uses_portals {
+        if self.light_only {
             return false;
         }
         let (light_share, other) = self.light_share();
@@ -275,7 +283,7 @@ impl LightSampler {
         x: Vec3,
         ctx: &mut LightContext,
     ) {
-        self.fill_context_classified(scene, light, x, ctx, &classify_by_planes);
+        self.fill_context_classified(scene, light, x, ctx, &ByPlanes);
     }
 
     /// [`Self::fill_context`] with the regions given by `classify`. Any classifier keeps the
@@ -289,12 +297,13 @@ impl LightSampler {
         light: usize,
         x: Vec3,
         ctx: &mut LightContext,
-        classify: &(impl Fn(&Portal, Vec3) -> Region + ?Sized),
+        classify: &(impl Classifier + ?Sized),
     ) {
         ctx.light = light;
         ctx.x = x;
         ctx.alpha = self.alpha_of[light];
         ctx.uses_portals = false;
+        ctx.light_only = true;
         ctx.has_portals = self.strategy != Strategy::Light && !self.portals_of[light].is_empty();
         ctx.count = 0;
         ctx.region = Region::Behind;
@@ -306,7 +315,7 @@ impl LightSampler {
         // rewrites the terms it already has room for).
         let mut candidates: ArrayVec<(usize, Region, Technique), MAX_TERMS> = ArrayVec::new();
         for &j in &self.portals_of[light] {
-            let region = classify(&scene.portals()[j], x);
+            let region = classify.region(&scene.portals()[j], x);
             if region == Region::Behind {
                 continue;
             }
@@ -314,6 +323,23 @@ impl LightSampler {
             ctx.region = Region::Outside;
             if let Some(technique) = self.strategy.technique(region) {
                 candidates.push((j, region, technique));
+            }
+        }
+        // One light-technique term (the antiumbra of one portal): weight 1, and the mixture
+        // is light sampling; the general loop below would give the same term.
+        if let [(j, region, Technique::Light)] = candidates[..] {
+            if ctx.slots.is_empty() {
+                ctx.slots.push(PortalTerm::empty());
+            }
+            if let Some(term) = ctx.slots.first_mut() {
+                term.portal = j;
+                term.region = region;
+                term.technique = Technique::Light;
+                term.weight = 1.0;
+                term.projected = false;
+                ctx.count = 1;
+                ctx.region = region;
+                return;
             }
         }
         // Weights by the light's solid angle through each portal; one term needs none.
@@ -346,9 +372,14 @@ impl LightSampler {
         }
         let terms = &mut ctx.slots[..ctx.count];
         let total: f32 = terms.iter().map(|t| t.weight).sum();
+        let mut all_light = !terms.is_empty();
         for term in terms.iter_mut() {
             term.weight /= total;
+            all_light &= term.technique == Technique::Light;
         }
+        // In front of portals but outside every antishadow (no terms), the mixture is the
+        // `alpha` share of light sampling, not light sampling.
+        ctx.light_only = !ctx.uses_portals || all_light;
         if let Some(best) = ctx
             .terms()
             .iter()
@@ -373,6 +404,10 @@ impl LightSampler {
         u_technique: f32,
         u: Vec2,
     ) -> Option<LightSample> {
+        if ctx.light_only {
+            // `split_share` at a share of 1 would return `u` as it is.
+            return self.draw_share(scene, ctx, (true, 0.0), u_technique, u, false);
+        }
         let (light_share, other) = ctx.light_share();
         let (from_light_share, u) = split_share(u, light_share);
         self.draw_share(scene, ctx, (from_light_share, other), u_technique, u, true)
@@ -466,11 +501,11 @@ impl LightSampler {
             },
         };
         let le = hit.map_or(Vec3::ZERO, |(y, _)| light.emitted(y.n, -wi));
-        // Without portals the mixture is light sampling alone, whose density is in hand.
-        let pdf = if ctx.uses_portals {
-            self.pdf(scene, ctx, wi, hit)
-        } else {
+        // Where the mixture is light sampling alone, its density is in hand.
+        let pdf = if ctx.light_only {
             technique_pdf
+        } else {
+            self.pdf(scene, ctx, wi, hit)
         };
         Some(LightSample {
             wi,
@@ -527,7 +562,7 @@ impl LightSampler {
         hit: Option<(LightPoint, f32)>,
     ) -> f32 {
         let p_light = self.light_pdf(scene, ctx.light, wi, hit);
-        if !ctx.uses_portals {
+        if ctx.light_only {
             return p_light;
         }
         let portals: f32 = ctx
@@ -564,11 +599,29 @@ impl LightSampler {
     }
 }
 
-/// The classifier of [`LightSampler::fill_context`]: the portal's precomputed planes. A function
-/// rather than a closure, so that it is inlined into the renderer's instruction-set variants.
-#[inline(always)]
-fn classify_by_planes(portal: &Portal, x: Vec3) -> Region {
-    portal.planes.classify(x)
+/// What gives [`LightSampler::fill_context_classified`] a point's region for a portal: the
+/// portal's precomputed planes ([`ByPlanes`]), or any function of (portal, point).
+pub trait Classifier {
+    fn region(&self, portal: &Portal, x: Vec3) -> Region;
+}
+
+/// The classifier of [`LightSampler::fill_context`]: the portal's precomputed planes. A type
+/// rather than a function item, whose `Fn::call` shim the renderer's instruction-set variants
+/// called out of line (about 200 instructions per shading point in fig8b).
+pub struct ByPlanes;
+
+impl Classifier for ByPlanes {
+    #[inline(always)]
+    fn region(&self, portal: &Portal, x: Vec3) -> Region {
+        portal.planes.classify(x)
+    }
+}
+
+impl<F: Fn(&Portal, Vec3) -> Region + ?Sized> Classifier for F {
+    #[inline(always)]
+    fn region(&self, portal: &Portal, x: Vec3) -> Region {
+        self(portal, x)
+    }
 }
 
 /// `p_{s_j}(wi | x)`: one portal term's technique density (`p_light` is `p_L(wi)`).

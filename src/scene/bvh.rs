@@ -5,13 +5,14 @@ use glam::{UVec2, Vec2, Vec3, Vec3A};
 use obvhs::{
     BvhBuildParams,
     bvh2::{Bvh2, reinsertion::ReinsertionOptimizer},
-    cwbvh::{CwBvh, bvh2_to_cwbvh::bvh2_to_cwbvh},
+    cwbvh::{CwBvh, bvh2_to_cwbvh::bvh2_to_cwbvh, node::CwBvhNode},
     ploc::PlocBuilder,
     ray::{Ray, RayHit},
     triangle::Triangle,
 };
 use std::collections::HashMap;
 
+use crate::isa::Isa;
 use crate::surface::SurfaceTextures;
 
 /// A triangle laid out for intersection (obvhs's `RtTriangle` layout), with a Möller–Trumbore
@@ -79,12 +80,96 @@ fn make_ray(origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> Ray {
     Ray::new(origin.into(), (dir + Vec3::ZERO).into(), tmin, tmax)
 }
 
+/// obvhs's lower bound on a child's entry distance (`cwbvh::node::EPSILON`, crate-private).
+const NODE_EPSILON: f32 = 0.0001;
+
+/// The children of `node` that `ray` enters, as obvhs's traversal wants them: obvhs's own test
+/// (`CwBvhNode::intersect_ray`, SSE, four children at a time) or, where the CPU has AVX2,
+/// [`node_hits_avx2`], which gives the same mask.
+#[inline(always)]
+#[allow(unsafe_code)]
+fn node_hits(isa: Isa, node: &CwBvhNode, ray: &Ray, oct_inv4: u32) -> u32 {
+    match isa {
+        // SAFETY: a BVH's `isa` is `Isa::detect()`, which is `Avx2` only where the CPU has it.
+        #[cfg(target_arch = "x86_64")]
+        Isa::Avx2 => unsafe { node_hits_avx2(node, ray, oct_inv4) },
+        _ => node.intersect_ray(ray, oct_inv4),
+    }
+}
+
+/// obvhs's `CwBvhNode::intersect_ray` (its SSE `intersect_ray_simd`) in AVX2: all eight
+/// children in one register, their byte-quantised bounds widened by two instructions instead of
+/// 48 scalar conversions. The same IEEE operations in the same order (multiply, then add, never
+/// fused; `max`/`min` with the same operand order), so the same mask, bit for bit
+/// (`avx2_node_test_agrees_with_obvhs`). Traversal spends a fifth of a light sample here; this
+/// takes 8% of its instructions away.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn node_hits_avx2(node: &CwBvhNode, ray: &Ray, oct_inv4: u32) -> u32 {
+    use std::arch::x86_64::*;
+    let dir_inv = node.compute_extent() * ray.inv_direction;
+    let origin = (Vec3A::from(node.p) - ray.origin) * ray.inv_direction;
+    // SAFETY: an 8-byte load from an 8-byte array.
+    #[allow(unsafe_code)]
+    let bytes = |v: &[u8; 8]| unsafe {
+        _mm256_cvtepi32_ps(_mm256_cvtepu8_epi32(_mm_loadl_epi64(
+            v.as_ptr() as *const __m128i
+        )))
+    };
+    let slab = |lo: &[u8; 8], hi: &[u8; 8], negative: bool, inv: f32, o: f32| {
+        let (lo, hi) = (bytes(lo), bytes(hi));
+        let (near, far) = if negative { (hi, lo) } else { (lo, hi) };
+        let (inv, o) = (_mm256_set1_ps(inv), _mm256_set1_ps(o));
+        (
+            _mm256_add_ps(_mm256_mul_ps(near, inv), o),
+            _mm256_add_ps(_mm256_mul_ps(far, inv), o),
+        )
+    };
+    let d = ray.direction;
+    let (tmin_x, tmax_x) = slab(
+        &node.child_min_x,
+        &node.child_max_x,
+        d.x < 0.0,
+        dir_inv.x,
+        origin.x,
+    );
+    let (tmin_y, tmax_y) = slab(
+        &node.child_min_y,
+        &node.child_max_y,
+        d.y < 0.0,
+        dir_inv.y,
+        origin.y,
+    );
+    let (tmin_z, tmax_z) = slab(
+        &node.child_min_z,
+        &node.child_max_z,
+        d.z < 0.0,
+        dir_inv.z,
+        origin.z,
+    );
+    let tmin = _mm256_max_ps(tmin_x, _mm256_max_ps(tmin_y, tmin_z));
+    let tmax = _mm256_min_ps(tmax_x, _mm256_min_ps(tmax_y, tmax_z));
+    let tmin = _mm256_max_ps(tmin, _mm256_set1_ps(NODE_EPSILON));
+    let tmax = _mm256_min_ps(tmax, _mm256_set1_ps(ray.tmax));
+    let mut hit = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(tmin, tmax)) as u32;
+    let (child_bits8, bit_index8) = node.get_child_and_index_bits(oct_inv4);
+    let mut mask = 0;
+    while hit != 0 {
+        let j = hit.trailing_zeros() * 8;
+        hit &= hit - 1;
+        mask |= ((child_bits8 >> j) as u32 & 0xff) << ((bit_index8 >> j) as u32 & 0xff);
+    }
+    mask
+}
+
 /// The closest primitive along `ray` and its distance: obvhs's `CwBvh::ray_traverse`, through
 /// its `traverse!` macro here so that the traversal is compiled into (and inlined by) the
 /// renderer's CPU-feature variants (`render::render_tile`) instead of once for baseline x86-64.
 #[inline(always)]
 fn closest(
     bvh: &CwBvh,
+    isa: Isa,
     ray: Ray,
     mut intersect: impl FnMut(&Ray, usize) -> f32,
 ) -> Option<(u32, f32)> {
@@ -96,7 +181,7 @@ fn closest(
         bvh,
         node,
         state,
-        node.intersect_ray(&traverse_ray, state.oct_inv4),
+        node_hits(isa, node, &traverse_ray, state.oct_inv4),
         {
             let t = intersect(&traverse_ray, state.primitive_id as usize);
             if t < traverse_ray.tmax {
@@ -112,7 +197,7 @@ fn closest(
 /// Whether any primitive lies along `ray`: obvhs's `CwBvh::ray_traverse_miss`, negated, for the
 /// same reason as [`closest`].
 #[inline(always)]
-fn any_hit(bvh: &CwBvh, ray: Ray, mut intersect: impl FnMut(&Ray, usize) -> f32) -> bool {
+fn any_hit(bvh: &CwBvh, isa: Isa, ray: Ray, mut intersect: impl FnMut(&Ray, usize) -> f32) -> bool {
     let mut state = bvh.new_traversal(ray.direction);
     let mut node;
     let mut hit = false;
@@ -121,7 +206,7 @@ fn any_hit(bvh: &CwBvh, ray: Ray, mut intersect: impl FnMut(&Ray, usize) -> f32)
             bvh,
             node,
             state,
-            node.intersect_ray(&ray, state.oct_inv4),
+            node_hits(isa, node, &ray, state.oct_inv4),
             {
                 if intersect(&ray, state.primitive_id as usize) < ray.tmax {
                     hit = true;
@@ -163,6 +248,8 @@ pub struct Bvh {
     scene_index: Vec<u32>,
     /// Alpha-tested triangles, if the scene has any: rays pass through their cut-out parts.
     cutouts: Option<Cutouts>,
+    /// The instruction set of the node test, `Isa::detect()`.
+    isa: Isa,
 }
 
 /// A triangle whose material is alpha-tested: its corners' `TEXCOORD_0/1` and its surface.
@@ -310,6 +397,7 @@ impl Bvh {
                 triangles: Vec::new(),
                 scene_index: Vec::new(),
                 cutouts: None,
+                isa: Isa::detect(),
             });
         }
         let mut sharing: HashMap<[u32; 6], usize> = HashMap::new();
@@ -360,6 +448,7 @@ impl Bvh {
             triangles,
             scene_index,
             cutouts: None,
+            isa: Isa::detect(),
         })
     }
 
@@ -413,8 +502,8 @@ impl Bvh {
         let bvh = self.cwbvh.as_ref()?;
         let ray = make_ray(origin, dir, tmin, tmax);
         let (id, t) = match &self.cutouts {
-            None => closest(bvh, ray, |r, id| self.triangles[id].intersect(r)),
-            Some(c) => closest(bvh, ray, |r, id| self.intersect_cutout(c, r, id)),
+            None => closest(bvh, self.isa, ray, |r, id| self.triangles[id].intersect(r)),
+            Some(c) => closest(bvh, self.isa, ray, |r, id| self.intersect_cutout(c, r, id)),
         }?;
         let (u, v, _) = self.triangles[id as usize].uvt(&ray);
         Some(Hit {
@@ -432,8 +521,8 @@ impl Bvh {
         };
         let ray = make_ray(origin, dir, tmin, tmax);
         match &self.cutouts {
-            None => any_hit(bvh, ray, |r, id| self.triangles[id].intersect(r)),
-            Some(c) => any_hit(bvh, ray, |r, id| self.intersect_cutout(c, r, id)),
+            None => any_hit(bvh, self.isa, ray, |r, id| self.triangles[id].intersect(r)),
+            Some(c) => any_hit(bvh, self.isa, ray, |r, id| self.intersect_cutout(c, r, id)),
         }
     }
 
@@ -451,5 +540,64 @@ impl Bvh {
             self.triangles[id].intersect(r)
         });
         hit.t
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sampling::Rng;
+
+    /// The AVX2 node test gives obvhs's mask for every node of a tree and rays in every octant,
+    /// axis-parallel ones too (+0.0 components: which slab plane is near is decided by the
+    /// direction's sign, and obvhs's safe inverse makes them huge but finite), short ones, and
+    /// ones starting inside the boxes. Reading +0.0 as negative there fails it.
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    #[allow(unsafe_code)]
+    fn avx2_node_test_agrees_with_obvhs() {
+        if !std::arch::is_x86_feature_detected!("avx2") {
+            return;
+        }
+        let mut rng = Rng::new(7, 0);
+        let mut point = |scale: f32| {
+            let u = rng.uniform2();
+            let w = rng.uniform();
+            (Vec3::new(u.x, u.y, w) * 2.0 - 1.0) * scale
+        };
+        let triangles: Vec<[Vec3; 3]> = (0..2000)
+            .map(|_| {
+                let c = point(4.0);
+                [c + point(0.3), c + point(0.3), c + point(0.3)]
+            })
+            .collect();
+        let bvh = Bvh::build(&triangles).unwrap();
+        let cwbvh = bvh.cwbvh.as_ref().unwrap();
+        let (mut compared, mut hits) = (0, 0);
+        for i in 0..3000 {
+            let mut dir = point(1.0);
+            match i % 5 {
+                0 => dir.x = 0.0,
+                1 => dir = Vec3::new(0.0, dir.y, 0.0),
+                _ => {}
+            }
+            if dir == Vec3::ZERO {
+                continue;
+            }
+            let tmax = if i % 3 == 0 { 0.5 } else { f32::INFINITY };
+            let ray = make_ray(point(6.0), dir.normalize(), 0.0, tmax);
+            let oct_inv4 = cwbvh.new_traversal(ray.direction).oct_inv4;
+            for node in &cwbvh.nodes {
+                let sse = node.intersect_ray(&ray, oct_inv4);
+                // SAFETY: AVX2 was detected above.
+                let avx2 = unsafe { node_hits_avx2(node, &ray, oct_inv4) };
+                assert_eq!(sse, avx2, "ray {i}: {ray:?}, node {node:?}");
+                compared += 1;
+                hits += (sse != 0) as u32;
+            }
+        }
+        // Not vacuous: the rays enter children of 2.5 nodes each on average (7581 masks of
+        // 717,000 are not empty), and miss every child of most.
+        assert!(hits > 5000 && hits < compared / 20, "{hits} of {compared}");
     }
 }
