@@ -101,8 +101,8 @@ fn node_hits(isa: Isa, node: &CwBvhNode, ray: &Ray, oct_inv4: u32) -> u32 {
 /// children in one register, their byte-quantised bounds widened by two instructions instead of
 /// 48 scalar conversions. The same IEEE operations in the same order (multiply, then add, never
 /// fused; `max`/`min` with the same operand order), so the same mask, bit for bit
-/// (`avx2_node_test_agrees_with_obvhs`). Traversal spends a fifth of a light sample here; this
-/// takes 8% of its instructions away.
+/// (`avx2_node_test_agrees_with_obvhs`). Node tests were a fifth of a light sample's
+/// instructions in fig8b; this form takes 8% of that sample's instructions away.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 #[inline]
