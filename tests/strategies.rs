@@ -747,17 +747,8 @@ fn every_strategy_agrees_with_light_sampling() {
             .enumerate()
         {
             let image = render_image(&scene, strategy, None, (spp, 200 + k as u64));
-            let blocks = block_differences(&image, &reference, 6, 1.0);
-            assert!(blocks.len() > 10, "{name}: too few lit blocks");
-            assert!(
-                consistent(&blocks),
-                "{name} {}: (difference, standard error) = {blocks:?}",
-                strategy.name()
-            );
-            if k == 0 {
-                let scaled = block_differences(&image, &reference, 6, 1.03);
-                assert!(!consistent(&scaled), "{name}: a 3% error went undetected");
-            }
+            let label = format!("{name} {}", strategy.name());
+            common::assert_agrees(&label, &image, &reference, k == 0);
         }
     }
 }

@@ -12,17 +12,14 @@ use portalview::light::{Mixture, Strategy};
 use portalview::sampling::SamplerKind;
 mod ui_common;
 
-use ui_common::{harness_with, save_portals, serial, step_until};
+use ui_common::{
+    click_until_restarted, harness_with, has_full_frame, newer_full_frame, save_portals, serial,
+    step_until,
+};
 
 /// The viewer on `scene`, as built for every test here.
 fn harness(scene: &str) -> Harness<'static, PortalViewApp> {
     harness_with(scene, |_| {})
-}
-
-/// A full-resolution frame of the newest request, with its per-pixel classification.
-fn has_full_frame(app: &PortalViewApp) -> bool {
-    app.frame()
-        .is_some_and(|f| !f.preview && f.primary.is_some() && f.spp >= 2)
 }
 
 #[test]
@@ -37,9 +34,7 @@ fn switching_strategy_changes_what_the_worker_renders() {
     h.step();
     assert_eq!(h.state().settings.strategy, Strategy::Light);
     let generation = h.state().frame().unwrap().generation;
-    step_until(&mut h, "light frame", |a| {
-        has_full_frame(a) && a.frame().unwrap().generation > generation
-    });
+    step_until(&mut h, "light frame", |a| newer_full_frame(a, generation));
     let stats = h.state().frame().unwrap().stats;
     assert_eq!(
         stats.techniques[1] + stats.techniques[2],
@@ -63,14 +58,9 @@ fn switching_sampler_restarts_the_render_with_it() {
         ("independent", SamplerKind::Independent),
         ("sobol", SamplerKind::Sobol),
     ] {
-        let generation = h.state().frame().unwrap().generation;
-        h.get_by_label(label).click();
-        h.step();
+        click_until_restarted(&mut h, label);
         assert_eq!(h.state().settings.sampler, kind);
         assert_eq!(h.state().render_settings().sampler, kind);
-        step_until(&mut h, "restarted frame", |a| {
-            has_full_frame(a) && a.frame().unwrap().generation > generation
-        });
     }
 }
 
@@ -92,14 +82,9 @@ fn switching_the_mixture_restarts_the_render_with_it() {
         ("each-share", Mixture::EachShare),
         ("one-sample", Mixture::OneSample),
     ] {
-        let generation = h.state().frame().unwrap().generation;
-        h.get_by_label(label).click();
-        h.step();
+        click_until_restarted(&mut h, label);
         assert_eq!(h.state().settings.mixture, mixture);
         assert_eq!(h.state().render_settings().mixture, mixture);
-        step_until(&mut h, "restarted frame", |a| {
-            has_full_frame(a) && a.frame().unwrap().generation > generation
-        });
         ratios.push(shadow_rays_per_path(h.state()));
     }
     assert!(
@@ -149,7 +134,7 @@ fn moving_a_portal_restarts_and_changes_the_overlay() {
     app.editor.set_pose(0, pose);
     app.apply_portal_edit();
     step_until(&mut h, "frame after the edit", |a| {
-        has_full_frame(a) && a.frame().unwrap().generation > before.generation
+        newer_full_frame(a, before.generation)
     });
     let after = h.state().frame().unwrap();
     assert!(

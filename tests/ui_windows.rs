@@ -14,7 +14,9 @@ use portalview::light::antishadow::Region;
 use portalview::sampling::polygon::ConvexPolygon;
 mod ui_common;
 
-use ui_common::{click_save_portals, save_portals, serial, step_until};
+use ui_common::{
+    click_save_portals, has_full_frame, newer_full_frame, save_portals, serial, step_until,
+};
 
 /// The viewer on `scene` in a window tall enough that the side panel's Portals and
 /// Environment sections are on screen without scrolling (clicks reach only what is shown).
@@ -28,15 +30,6 @@ fn harness(scene: &str) -> Harness<'static, PortalViewApp> {
         a.scene().is_some() && !a.is_busy()
     });
     h
-}
-
-fn has_full_frame(app: &PortalViewApp) -> bool {
-    app.frame()
-        .is_some_and(|f| !f.preview && f.primary.is_some() && f.spp >= 2)
-}
-
-fn newer_full_frame(app: &PortalViewApp, generation: u64) -> bool {
-    has_full_frame(app) && app.frame().is_some_and(|f| f.generation > generation)
 }
 
 fn share(shares: [f32; 5], region: Region) -> f32 {

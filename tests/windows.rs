@@ -9,7 +9,7 @@
 //! state while it builds one) is sampled by solid angle, without bias. Run in release.
 
 mod common;
-use common::{block_differences, consistent};
+use common::assert_agrees;
 
 use glam::{Mat4, Vec2, Vec3};
 use portalview::asset::builtin;
@@ -528,17 +528,8 @@ fn every_strategy_agrees_with_environment_sampling() {
             .enumerate()
         {
             let image = render_image(&scene, strategy, None, spp, 200 + k as u64);
-            let blocks = block_differences(&image, &reference, 6, 1.0);
-            assert!(blocks.len() > 10, "{name}: too few lit blocks");
-            assert!(
-                consistent(&blocks),
-                "{name} {}: {blocks:?}",
-                strategy.name()
-            );
-            if k == 0 {
-                let scaled = block_differences(&image, &reference, 6, 1.03);
-                assert!(!consistent(&scaled), "{name}: a 3% error went undetected");
-            }
+            let label = format!("{name} {}", strategy.name());
+            assert_agrees(&label, &image, &reference, k == 0);
         }
     }
 }
@@ -568,17 +559,8 @@ fn each_share_sky_mixture_agrees_with_environment_sampling() {
                 512,
                 210 + k as u64,
             );
-            let blocks = block_differences(&image, &reference, 6, 1.0);
-            assert!(blocks.len() > 10, "{name}: too few lit blocks");
-            assert!(
-                consistent(&blocks),
-                "{name} {} each-share: {blocks:?}",
-                strategy.name()
-            );
-            if k == 0 {
-                let scaled = block_differences(&image, &reference, 6, 1.03);
-                assert!(!consistent(&scaled), "{name}: a 3% error went undetected");
-            }
+            let label = format!("{name} {} each-share", strategy.name());
+            assert_agrees(&label, &image, &reference, k == 0);
         }
     }
 }
@@ -816,11 +798,7 @@ fn a_window_awaiting_its_table_is_sampled_by_solid_angle_without_bias() {
     // per-pixel sample variances (`block_differences`).
     let reference = render_image(&turned, Strategy::Light, None, 512, 300);
     let image = render_image(&turned, Strategy::Antishadow, None, 512, 301);
-    let blocks = block_differences(&image, &reference, 6, 1.0);
-    assert!(blocks.len() > 10, "too few lit blocks");
-    assert!(consistent(&blocks), "{blocks:?}");
-    let scaled = block_differences(&image, &reference, 6, 1.03);
-    assert!(!consistent(&scaled), "a 3% error went undetected");
+    assert_agrees("turned window", &image, &reference, true);
 
     turned.build_tables();
     assert!(!turned.lacks_tables());

@@ -524,6 +524,22 @@ pub fn consistent(blocks: &[Block]) -> bool {
         && scale_statistic(blocks).abs() <= 4.0
 }
 
+/// Asserts that `image` agrees with `reference` ([`consistent`] over blocks of 6 × 6 pixels,
+/// more than 10 of them lit); with `negative`, also that `image` scaled by 1.03 does not, which
+/// shows the test can fail for a 3% bias.
+pub fn assert_agrees(label: &str, image: &Film, reference: &Film, negative: bool) {
+    let blocks = block_differences(image, reference, 6, 1.0);
+    assert!(blocks.len() > 10, "{label}: too few lit blocks");
+    assert!(
+        consistent(&blocks),
+        "{label}: (difference, standard error) = {blocks:?}"
+    );
+    if negative {
+        let scaled = block_differences(image, reference, 6, 1.03);
+        assert!(!consistent(&scaled), "{label}: a 3% error went undetected");
+    }
+}
+
 /// `T` of [`consistent`].
 pub fn scale_statistic(blocks: &[Block]) -> f64 {
     let w: Vec<f64> = blocks.iter().map(|b| b.mean / b.se).collect();

@@ -56,6 +56,29 @@ pub fn step_until(
     }
 }
 
+/// A full-resolution frame of the newest request, with its per-pixel classification.
+pub fn has_full_frame(app: &PortalViewApp) -> bool {
+    app.frame()
+        .is_some_and(|f| !f.preview && f.primary.is_some() && f.spp >= 2)
+}
+
+/// A full frame of a request made after the frame of `generation`.
+pub fn newer_full_frame(app: &PortalViewApp, generation: u64) -> bool {
+    has_full_frame(app) && app.frame().is_some_and(|f| f.generation > generation)
+}
+
+/// Clicks the widget labelled `label` and steps until a full frame of the render it restarted
+/// arrives.
+pub fn click_until_restarted(h: &mut Harness<'static, PortalViewApp>, label: &str) {
+    let generation = h
+        .state()
+        .frame()
+        .expect("a frame before the click")
+        .generation;
+    h.get_by_label(label).click();
+    step_until(h, "restarted frame", |a| newer_full_frame(a, generation));
+}
+
 /// Clicks *File → Save portals*.
 pub fn click_save_portals(h: &mut Harness<'static, PortalViewApp>) {
     h.get_by_label("File").click();
