@@ -15,7 +15,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use crate::camera::RayGenerator;
 pub use crate::isa::Isa;
-use crate::scene::bvh::Tracer;
+use crate::scene::bvh::{ShadowCache, Tracer};
 use film::Film;
 use integrator::{Integrator, PathContexts};
 use stats::Stats;
@@ -138,6 +138,8 @@ fn tile_samples<T: Tracer>(
     let size = Vec2::new(tiles.width as f32, tiles.height as f32);
     let mut pixels = Vec::with_capacity((w * h) as usize);
     let mut contexts = PathContexts::new();
+    // The tile's shading points lie close together: their shadow rays share blockers.
+    let tracer = &ShadowCache::new(tracer);
     for y in y0..y0 + h {
         for x in x0..x0 + w {
             let mut rng = settings

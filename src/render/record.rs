@@ -56,9 +56,9 @@ impl Tracer for Recorder<'_> {
         self.bvh.closest_hit(origin, dir, tmin, tmax)
     }
 
-    fn occluded(&self, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> bool {
+    fn occluder(&self, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32, guess: u32) -> Option<u32> {
         self.keep(origin, dir, tmin, tmax, false);
-        self.bvh.occluded(origin, dir, tmin, tmax)
+        self.bvh.occluder(origin, dir, tmin, tmax, guess)
     }
 }
 
