@@ -141,6 +141,32 @@ impl Sampler<'_> {
         }
     }
 
+    /// `N` uniform numbers in [0, 1), the same as `N` calls of [`Sampler::uniform`] (the
+    /// Sobol' sampler finishes them side by side).
+    #[inline(always)]
+    pub fn uniforms<const N: usize>(&mut self) -> [f32; N] {
+        match self {
+            Sampler::Independent(rng) => {
+                let mut u = [0.0; N];
+                for u in &mut u {
+                    *u = rng.uniform();
+                }
+                u
+            }
+            Sampler::Sobol(s) => s.uniforms(),
+        }
+    }
+
+    /// [`Sampler::uniform`] and then [`Sampler::uniform2`], the same numbers (the Sobol'
+    /// sampler finishes them side by side).
+    #[inline(always)]
+    pub fn uniform_uniform2(&mut self) -> (f32, Vec2) {
+        match self {
+            Sampler::Independent(rng) => (rng.uniform(), rng.uniform2()),
+            Sampler::Sobol(s) => s.uniform_uniform2(),
+        }
+    }
+
     /// Uniform on [0, 1)², stratified jointly by the Sobol' sampler.
     #[inline(always)]
     pub fn uniform2(&mut self) -> Vec2 {

@@ -120,6 +120,33 @@ impl ZSobol<'_> {
         scrambled_unit(sobol0(index_rev), seeds as u32)
     }
 
+    /// `N` uniform numbers in [0, 1), as `N` calls of [`ZSobol::uniform`] give them: drawn
+    /// together, their reversals and scrambles run side by side, in vector instructions where
+    /// compiled for AVX2 (as a 2D draw's two coordinates do).
+    #[inline(always)]
+    pub fn uniforms<const N: usize>(&mut self) -> [f32; N] {
+        let mut draws = [(0, 0); N];
+        for draw in &mut draws {
+            *draw = self.next_draw();
+        }
+        draws.map(|(index_rev, seeds)| scrambled_unit(sobol0(index_rev), seeds as u32))
+    }
+
+    /// A uniform number in [0, 1) and then a point on [0, 1)², as [`ZSobol::uniform`] and
+    /// [`ZSobol::uniform2`] give them, their three coordinates finished side by side.
+    #[inline(always)]
+    pub fn uniform_uniform2(&mut self) -> (f32, glam::Vec2) {
+        let (first, first_seeds) = self.next_draw();
+        let (index_rev, seeds) = self.next_draw();
+        let [u, x, y] = [
+            (sobol0(first), first_seeds as u32),
+            (sobol0(index_rev), seeds as u32),
+            (sobol1(index_rev), (seeds >> 32) as u32),
+        ]
+        .map(|(coordinate, seed)| scrambled_unit(coordinate, seed));
+        (u, glam::Vec2::new(x, y))
+    }
+
     /// Uniform on [0, 1)²: the first two Sobol' dimensions of this draw's index, which form a
     /// (0, 2)-sequence, each Owen-scrambled with its own seed.
     #[inline(always)]
@@ -393,16 +420,25 @@ mod tests {
                         reference::ZSobol::new(seed, x, y, pass),
                     );
                     for d in 0..TABLED_DIMENSIONS + 8 {
-                        // An irregular mix of 1D and 2D draws.
-                        if (d * 7 + x as usize) % 3 == 0 {
-                            let (a, b) = (new.uniform2(), old.uniform2());
-                            assert_eq!(
-                                a.to_array().map(f32::to_bits),
-                                b.to_array().map(f32::to_bits)
-                            );
-                        } else {
-                            assert_eq!(new.uniform().to_bits(), old.uniform().to_bits());
-                        }
+                        // An irregular mix of 1D and 2D draws, alone and together.
+                        let bits = |v: &[f32]| v.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+                        let (a, b) = match (d * 7 + x as usize) % 5 {
+                            0 => (
+                                new.uniform2().to_array().to_vec(),
+                                old.uniform2().to_array().to_vec(),
+                            ),
+                            1 => (
+                                new.uniforms::<2>().to_vec(),
+                                vec![old.uniform(), old.uniform()],
+                            ),
+                            2 => {
+                                let (u, v) = new.uniform_uniform2();
+                                let (old_u, old_v) = (old.uniform(), old.uniform2());
+                                (vec![u, v.x, v.y], vec![old_u, old_v.x, old_v.y])
+                            }
+                            _ => (vec![new.uniform()], vec![old.uniform()]),
+                        };
+                        assert_eq!(bits(&a), bits(&b));
                         draws += 1;
                     }
                 }
