@@ -141,29 +141,19 @@ impl Sampler<'_> {
         }
     }
 
-    /// `N` uniform numbers in [0, 1), the same as `N` calls of [`Sampler::uniform`] (the
-    /// Sobol' sampler finishes them side by side).
+    /// `N ≤ 2` calls of [`Sampler::uniform`] and then one of [`Sampler::uniform2`], the same
+    /// numbers (the Sobol' sampler finishes them side by side).
     #[inline(always)]
-    pub fn uniforms<const N: usize>(&mut self) -> [f32; N] {
+    pub fn uniforms_uniform2<const N: usize>(&mut self) -> ([f32; N], Vec2) {
         match self {
             Sampler::Independent(rng) => {
                 let mut u = [0.0; N];
                 for u in &mut u {
                     *u = rng.uniform();
                 }
-                u
+                (u, rng.uniform2())
             }
-            Sampler::Sobol(s) => s.uniforms(),
-        }
-    }
-
-    /// [`Sampler::uniform`] and then [`Sampler::uniform2`], the same numbers (the Sobol'
-    /// sampler finishes them side by side).
-    #[inline(always)]
-    pub fn uniform_uniform2(&mut self) -> (f32, Vec2) {
-        match self {
-            Sampler::Independent(rng) => (rng.uniform(), rng.uniform2()),
-            Sampler::Sobol(s) => s.uniform_uniform2(),
+            Sampler::Sobol(s) => s.uniforms_uniform2(),
         }
     }
 

@@ -120,31 +120,26 @@ impl ZSobol<'_> {
         scrambled_unit(sobol0(index_rev), seeds as u32)
     }
 
-    /// `N` uniform numbers in [0, 1), as `N` calls of [`ZSobol::uniform`] give them: drawn
-    /// together, their reversals and scrambles run side by side, in vector instructions where
-    /// compiled for AVX2 (as a 2D draw's two coordinates do).
+    /// `N ≤ 2` uniform numbers in [0, 1) and then a point on [0, 1)², as `N` calls of
+    /// [`ZSobol::uniform`] and one of [`ZSobol::uniform2`] give them: drawn together, their
+    /// coordinates' reversals and scrambles run side by side, four lanes of vector
+    /// instructions where compiled for AVX2 (a lane left over scrambles a constant).
     #[inline(always)]
-    pub fn uniforms<const N: usize>(&mut self) -> [f32; N] {
-        let mut draws = [(0, 0); N];
-        for draw in &mut draws {
-            *draw = self.next_draw();
+    pub fn uniforms_uniform2<const N: usize>(&mut self) -> ([f32; N], glam::Vec2) {
+        const { assert!(N <= 2) };
+        let mut lanes = [(0, 0); 4];
+        for lane in &mut lanes[..N] {
+            let (index_rev, seeds) = self.next_draw();
+            *lane = (sobol0(index_rev), seeds as u32);
         }
-        draws.map(|(index_rev, seeds)| scrambled_unit(sobol0(index_rev), seeds as u32))
-    }
-
-    /// A uniform number in [0, 1) and then a point on [0, 1)², as [`ZSobol::uniform`] and
-    /// [`ZSobol::uniform2`] give them, their three coordinates finished side by side.
-    #[inline(always)]
-    pub fn uniform_uniform2(&mut self) -> (f32, glam::Vec2) {
-        let (first, first_seeds) = self.next_draw();
         let (index_rev, seeds) = self.next_draw();
-        let [u, x, y] = [
-            (sobol0(first), first_seeds as u32),
-            (sobol0(index_rev), seeds as u32),
-            (sobol1(index_rev), (seeds >> 32) as u32),
-        ]
-        .map(|(coordinate, seed)| scrambled_unit(coordinate, seed));
-        (u, glam::Vec2::new(x, y))
+        lanes[N] = (sobol0(index_rev), seeds as u32);
+        lanes[N + 1] = (sobol1(index_rev), (seeds >> 32) as u32);
+        let u = lanes.map(|(coordinate, seed)| scrambled_unit(coordinate, seed));
+        (
+            std::array::from_fn(|i| u[i]),
+            glam::Vec2::new(u[N], u[N + 1]),
+        )
     }
 
     /// Uniform on [0, 1)²: the first two Sobol' dimensions of this draw's index, which form a
@@ -427,14 +422,16 @@ mod tests {
                                 new.uniform2().to_array().to_vec(),
                                 old.uniform2().to_array().to_vec(),
                             ),
-                            1 => (
-                                new.uniforms::<2>().to_vec(),
-                                vec![old.uniform(), old.uniform()],
-                            ),
+                            1 => {
+                                let ([u, v], w) = new.uniforms_uniform2();
+                                let (old_u, old_v, old_w) =
+                                    (old.uniform(), old.uniform(), old.uniform2());
+                                (vec![u, v, w.x, w.y], vec![old_u, old_v, old_w.x, old_w.y])
+                            }
                             2 => {
-                                let (u, v) = new.uniform_uniform2();
-                                let (old_u, old_v) = (old.uniform(), old.uniform2());
-                                (vec![u, v.x, v.y], vec![old_u, old_v.x, old_v.y])
+                                let ([u], w) = new.uniforms_uniform2();
+                                let (old_u, old_w) = (old.uniform(), old.uniform2());
+                                (vec![u, w.x, w.y], vec![old_u, old_w.x, old_w.y])
                             }
                             _ => (vec![new.uniform()], vec![old.uniform()]),
                         };
