@@ -100,6 +100,8 @@ impl SamplerKind {
 }
 
 /// The samplers of one pass of a render ([`SamplerKind::pass`]).
+// One per tile, on the stack: boxing the Sobol' table would allocate for nothing.
+#[allow(clippy::large_enum_variant)]
 #[derive(Clone, Debug)]
 pub enum PassSampler {
     Independent { seed: u64, pass: u32 },
