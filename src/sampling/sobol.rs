@@ -28,7 +28,10 @@
 //! instructions), so the draws reverse no more than they must: they take the first two
 //! dimensions from the scrambled index as it comes, bit-reversed (the second by a subset sum
 //! rather than a superset sum), and reverse only each output's 32 bits, before and after its
-//! Owen scramble.
+//! Owen scramble. Those 32-bit steps are alike for every coordinate, so coordinates finished
+//! together ([`ZSobol::uniform2`], [`ZSobol::uniforms_uniform2`]) compile, for AVX2, to vector
+//! instructions (byte shuffles for the reversals). Together these take a draw from about 100
+//! instructions to about 80 (fig8a).
 
 /// Passes per epoch: the pass occupies the low `LOG2_PASSES` bits of the index.
 pub const LOG2_PASSES: u32 = 16;
