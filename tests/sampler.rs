@@ -33,7 +33,7 @@ fn path_draws(sampler: &mut Sampler) -> Vec<Draw> {
 /// The draws of passes `0..n` of pixel `(x, y)`, by draw slot.
 fn slots(kind: SamplerKind, seed: u64, (x, y): (u32, u32), n: u32) -> Vec<Vec<Draw>> {
     let paths: Vec<Vec<Draw>> = (0..n)
-        .map(|pass| path_draws(&mut kind.start(seed, x, y, 640, pass)))
+        .map(|pass| path_draws(&mut kind.pass(seed, pass).start(x, y, 640)))
         .collect();
     (0..paths[0].len())
         .map(|slot| paths.iter().map(|p| p[slot]).collect())
@@ -126,10 +126,10 @@ fn sobol_draws_are_stratified_over_every_power_of_two_prefix() {
 #[test]
 fn sobol_draws_are_uniform_and_uncorrelated_across_pixels() {
     let (w, h) = (64u32, 64u32);
-    let pass = 3;
+    let samplers = SamplerKind::Sobol.pass(11, 3);
     let firsts: Vec<Vec<f32>> = (0..w * h)
         .map(|i| {
-            let mut s = SamplerKind::Sobol.start(11, i % w, i / w, w, pass);
+            let mut s = samplers.start(i % w, i / w, w);
             let camera = s.uniform2();
             let mut v = vec![camera.x, camera.y];
             v.extend((0..6).map(|_| s.uniform()));

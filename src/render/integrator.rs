@@ -280,7 +280,7 @@ impl<'a> Integrator<'a> {
             l += beta * direct.map_or(Vec3::ZERO, |d| d.l);
 
             // BSDF sampling: the next ray, and MIS for the light it may hit.
-            let (u_lobe, u) = (rng.uniform(), rng.uniform2());
+            let ([u_lobe], u) = rng.uniforms_uniform2();
             let Some(wi_local) = material.sample_direction(shading.wo_local, u_lobe, u) else {
                 break;
             };
@@ -445,9 +445,7 @@ impl<'a> Integrator<'a> {
         stats: &mut Stats,
         ctx: &mut LightContext,
     ) -> Option<Direct> {
-        let u_pick = rng.uniform();
-        let u_technique = rng.uniform();
-        let u = rng.uniform2();
+        let ([u_pick, u_technique], u) = rng.uniforms_uniform2();
         let (light, light_prob) = match self.lights.pick(u_pick)? {
             (PickedLight::Area(light), p) => (light, p),
             (PickedLight::Lamp(lamp), p) => {

@@ -140,11 +140,10 @@ fn tile_samples<T: Tracer>(
     let mut contexts = PathContexts::new();
     // The tile's shading points lie close together: their shadow rays share blockers.
     let tracer = &ShadowCache::new(tracer);
+    let samplers = settings.sampler.pass(settings.seed, pass);
     for y in y0..y0 + h {
         for x in x0..x0 + w {
-            let mut rng = settings
-                .sampler
-                .start(settings.seed, x, y, tiles.width, pass);
+            let mut rng = samplers.start(x, y, tiles.width);
             let jitter = rng.uniform2();
             let (o, d) = rays.ray((Vec2::new(x as f32, y as f32) + jitter) / size);
             let l = integrator.radiance_traced(tracer, o, d, &mut rng, stats, &mut contexts);

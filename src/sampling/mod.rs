@@ -89,16 +89,37 @@ impl SamplerKind {
         }
     }
 
-    /// The sampler of pass `pass` of pixel `(x, y)` in an image `width` pixels wide: it
-    /// depends on nothing else, so an image does not depend on how threads split the work.
-    #[inline(always)]
-    pub fn start(self, seed: u64, x: u32, y: u32, width: u32, pass: u32) -> Sampler {
+    /// The samplers of pass `pass` under `seed`: what they share is computed here, once (per
+    /// tile), then [`PassSampler::start`] starts each pixel's.
+    pub fn pass(self, seed: u64, pass: u32) -> PassSampler {
         match self {
-            SamplerKind::Independent => {
+            SamplerKind::Independent => PassSampler::Independent { seed, pass },
+            SamplerKind::Sobol => PassSampler::Sobol(sobol::ZSobolPass::new(seed, pass)),
+        }
+    }
+}
+
+/// The samplers of one pass of a render ([`SamplerKind::pass`]).
+// One per tile, on the stack: boxing the Sobol' table would allocate for nothing.
+#[allow(clippy::large_enum_variant)]
+#[derive(Clone, Debug)]
+pub enum PassSampler {
+    Independent { seed: u64, pass: u32 },
+    Sobol(sobol::ZSobolPass),
+}
+
+impl PassSampler {
+    /// The sampler of pixel `(x, y)` in an image `width` pixels wide: it depends on nothing
+    /// else than the seed and the pass, so an image does not depend on how threads split the
+    /// work.
+    #[inline(always)]
+    pub fn start(&self, x: u32, y: u32, width: u32) -> Sampler<'_> {
+        match self {
+            &PassSampler::Independent { seed, pass } => {
                 let index = y as u64 * width as u64 + x as u64;
                 Sampler::Independent(Rng::keyed(seed, &[pass as u64, index]))
             }
-            SamplerKind::Sobol => Sampler::Sobol(sobol::ZSobol::new(seed, x, y, pass)),
+            PassSampler::Sobol(pass) => Sampler::Sobol(pass.pixel(x, y)),
         }
     }
 }
@@ -107,18 +128,34 @@ impl SamplerKind {
 /// per vertex light pick, technique pick, light direction, lobe, BSDF direction), so that with
 /// Sobol' points each draw is a dimension of its own.
 #[derive(Clone, Debug)]
-pub enum Sampler {
+pub enum Sampler<'a> {
     Independent(Rng),
-    Sobol(sobol::ZSobol),
+    Sobol(sobol::ZSobol<'a>),
 }
 
-impl Sampler {
+impl Sampler<'_> {
     /// Uniform in [0, 1).
     #[inline(always)]
     pub fn uniform(&mut self) -> f32 {
         match self {
             Sampler::Independent(rng) => rng.uniform(),
             Sampler::Sobol(s) => s.uniform(),
+        }
+    }
+
+    /// `N ≤ 2` calls of [`Sampler::uniform`] and then one of [`Sampler::uniform2`], the same
+    /// numbers (the Sobol' sampler finishes them side by side).
+    #[inline(always)]
+    pub fn uniforms_uniform2<const N: usize>(&mut self) -> ([f32; N], Vec2) {
+        match self {
+            Sampler::Independent(rng) => {
+                let mut u = [0.0; N];
+                for u in &mut u {
+                    *u = rng.uniform();
+                }
+                (u, rng.uniform2())
+            }
+            Sampler::Sobol(s) => s.uniforms_uniform2(),
         }
     }
 
@@ -132,7 +169,7 @@ impl Sampler {
     }
 }
 
-impl From<Rng> for Sampler {
+impl From<Rng> for Sampler<'_> {
     fn from(rng: Rng) -> Self {
         Sampler::Independent(rng)
     }
