@@ -338,7 +338,7 @@ impl PlaneBins {
     }
 
     fn probabilities(&self, pdf: impl Fn(Vec3) -> f32) -> Vec<f64> {
-        // Fine enough to resolve the guided table's 0.7° cells (the sun's edge in them) across
+        // Fine enough to resolve the guided table's 0.4°–0.8° cells (the sun's edge in them) across
         // a bin seen from close by.
         let sub = 40;
         let cell = self.size / BINS as f32;

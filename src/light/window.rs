@@ -10,7 +10,7 @@
 
 use super::environment::Environment;
 pub use super::guided::GuidedBox;
-use super::guided::{GuidedTable, jacobian};
+use super::guided::{GuidedTable, coordinate, gnomonic, jacobian};
 use crate::asset::desc::PortalDesc;
 use crate::sampling::cyclic_pairs;
 use crate::sampling::polygon::{ConvexPolygon, PolygonError};
@@ -207,8 +207,8 @@ impl Window {
         }
         let (xs, xt) = (rel.dot(f.s), rel.dot(f.t));
         let [s0, s1, t0, t1] = f.bounds;
-        let alpha = [((s0 - xs) / h).atan(), ((s1 - xs) / h).atan()];
-        let beta = [((t0 - xt) / h).atan(), ((t1 - xt) / h).atan()];
+        let alpha = [coordinate((s0 - xs) / h), coordinate((s1 - xs) / h)];
+        let beta = [coordinate((t0 - xt) / h), coordinate((t1 - xt) / h)];
         table.guided_box(alpha, beta)
     }
 
@@ -220,7 +220,7 @@ impl Window {
     pub fn sample_guided(&self, b: &GuidedBox, x: Vec3, u: Vec2) -> Option<(Vec3, f32)> {
         let table = self.guided.as_ref()?;
         let (alpha, beta, weight) = table.sample(b, [f64::from(u.x), f64::from(u.y)])?;
-        let (ta, tb) = (alpha.tan(), beta.tan());
+        let (ta, tb) = (gnomonic(alpha), gnomonic(beta));
         let f = &self.frame;
         let wi = (ta * f.s + tb * f.t + f.out).normalize().as_vec3();
         if !f.fills_box {
@@ -249,7 +249,7 @@ impl Window {
         if f.fills_box && !f.box_holds(x, ta, tb) {
             return 0.0;
         }
-        let (alpha, beta) = (ta.atan(), tb.atan());
+        let (alpha, beta) = (coordinate(ta), coordinate(tb));
         // The window lies inside the box: a direction through it that rounding puts a hair
         // outside takes the box's edge cell.
         let alpha = alpha.clamp(b.alpha[0], b.alpha[1]);
@@ -331,7 +331,7 @@ impl WindowFrame {
         (s0 - slack..=s1 + slack).contains(&ps) && (t0 - slack..=t1 + slack).contains(&pt)
     }
 
-    /// The unit direction at tangents `(a, b) = (tan α, tan β)`.
+    /// The unit direction at gnomonic coordinates `(a, b)` (`a = ω·s / ω·out`, likewise `b`).
     fn direction(&self, a: f64, b: f64) -> DVec3 {
         (a * self.s + b * self.t + self.out).normalize()
     }
