@@ -303,8 +303,11 @@ mod tests {
 
     /// The sampler as first written, draw by draw: the oracle that the restructured one (the
     /// per-pass table of seeds, the reversals merged or narrowed) returns the same numbers.
+    /// The hashes and scrambles it shares with the sampler did not change.
     mod reference {
-        use super::super::{PASSES_PER_EPOCH, morton2};
+        use super::super::{
+            PASSES_PER_EPOCH, mix_bits, morton2, nested_scramble_rev, owen_scramble_rev,
+        };
 
         pub struct ZSobol {
             index_rev: u64,
@@ -364,32 +367,6 @@ mod tests {
                 v ^= (v >> (1 << b)) & mask;
             }
             v as u32
-        }
-
-        fn owen_scramble_rev(mut v: u32, seed: u32) -> u32 {
-            v ^= v.wrapping_mul(0x3d20_adea);
-            v = v.wrapping_add(seed);
-            v = v.wrapping_mul((seed >> 16) | 1);
-            v ^= v.wrapping_mul(0x0552_6c56);
-            v ^= v.wrapping_mul(0x53a2_2864);
-            v
-        }
-
-        fn nested_scramble_rev(mut v: u64, seed: u64) -> u64 {
-            v ^= v.wrapping_mul(0x3d20_adea_9b5c_6f12);
-            v = v.wrapping_add(seed);
-            v = v.wrapping_mul((seed >> 32) | 1);
-            v ^= v.wrapping_mul(0x0552_6c56_e1a4_c3d6);
-            v ^= v.wrapping_mul(0x53a2_2864_27f0_5b8a);
-            v
-        }
-
-        fn mix_bits(mut v: u64) -> u64 {
-            v ^= v >> 31;
-            v = v.wrapping_mul(0x7fb5_d329_728e_a185);
-            v ^= v >> 27;
-            v = v.wrapping_mul(0x81da_def4_bc2d_d44d);
-            v ^ (v >> 33)
         }
     }
 
