@@ -270,14 +270,12 @@ impl<T: Tracer> Tracer for ShadowCache<'_, T> {
         self.tracer.closest_hit(origin, dir, tmin, tmax)
     }
 
+    /// The guess is always the last blocker (the renderer never has one of its own).
     #[inline(always)]
-    fn occluder(&self, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32, guess: u32) -> Option<u32> {
-        let guess = if guess == NO_OCCLUDER {
-            self.last.get()
-        } else {
-            guess
-        };
-        let found = self.tracer.occluder(origin, dir, tmin, tmax, guess);
+    fn occluder(&self, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32, _: u32) -> Option<u32> {
+        let found = self
+            .tracer
+            .occluder(origin, dir, tmin, tmax, self.last.get());
         if let Some(id) = found {
             self.last.set(id);
         }
