@@ -135,6 +135,11 @@ impl Material {
 
     /// `[E(wo), P(specular lobes)]` at `cos θo` (see [`Self::lobe_weights`]).
     fn lobe_at(&self, cos_o: f32) -> [f32; 2] {
+        // Without a specular lobe both are exactly zero: skip the table (building it is a
+        // fifth of a second that Lambertian scenes need not wait for).
+        if !self.has_specular() {
+            return [0.0, 0.0];
+        }
         let (a, b) = ggx_albedo(cos_o, self.alpha);
         let m = self.metallic;
         let mean = |v: Vec3| (v.x + v.y + v.z) / 3.0;
