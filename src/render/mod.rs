@@ -15,7 +15,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use crate::camera::RayGenerator;
 pub use crate::isa::Isa;
-use crate::scene::bvh::{ShadowCache, Tracer};
+use crate::scene::bvh::{PACKET, ShadowCache, Tracer};
 use film::Film;
 use integrator::{Integrator, PathContexts};
 use stats::Stats;
@@ -141,13 +141,30 @@ fn tile_samples<T: Tracer>(
     // The tile's shading points lie close together: their shadow rays share blockers.
     let tracer = &ShadowCache::new(tracer);
     let samplers = settings.sampler.pass(settings.seed, pass);
+    // Camera rays are traced in packets of a row's consecutive pixels, which take nearly the
+    // same path through the BVH; each path then continues from its hit, pixel by pixel.
+    let traced = integrator.camera_hits_traced();
     for y in y0..y0 + h {
-        for x in x0..x0 + w {
-            let mut rng = samplers.start(x, y, tiles.width);
-            let jitter = rng.uniform2();
-            let (o, d) = rays.ray((Vec2::new(x as f32, y as f32) + jitter) / size);
-            let l = integrator.radiance_traced(tracer, o, d, &mut rng, stats, &mut contexts);
-            pixels.push(stats.finite_or_counted(l));
+        for x in (x0..x0 + w).step_by(PACKET) {
+            let n = (x0 + w - x).min(PACKET as u32) as usize;
+            let mut rngs: [_; PACKET] =
+                std::array::from_fn(|i| samplers.start(x + i.min(n - 1) as u32, y, tiles.width));
+            let (mut origins, mut dirs) = ([Vec3::ZERO; PACKET], [Vec3::ZERO; PACKET]);
+            for (i, rng) in rngs.iter_mut().enumerate().take(n) {
+                let jitter = rng.uniform2();
+                let pixel = Vec2::new((x + i as u32) as f32, y as f32);
+                (origins[i], dirs[i]) = rays.ray((pixel + jitter) / size);
+            }
+            let mut hits = [None; PACKET];
+            if traced {
+                tracer.closest_hits(&origins[..n], &dirs[..n], 0.0, f32::INFINITY, &mut hits);
+            }
+            for (i, rng) in rngs.iter_mut().enumerate().take(n) {
+                let hit = traced.then_some(hits[i]);
+                let (o, d) = (origins[i], dirs[i]);
+                let l = integrator.radiance_from(tracer, o, d, hit, rng, stats, &mut contexts);
+                pixels.push(stats.finite_or_counted(l));
+            }
         }
     }
     pixels
