@@ -183,11 +183,12 @@ struct PacketGroup {
     lanes: u64,
 }
 
-/// The rays of a packet, one per lane, as [`node_hits_avx2`] reads them.
+/// The rays of a packet, one per lane, as [`node_hits_avx2`] and [`RtTri::uvt`] read them.
 #[cfg(target_arch = "x86_64")]
 #[derive(Clone, Copy)]
 struct Lanes {
     origin: [std::arch::x86_64::__m256; 3],
+    direction: [std::arch::x86_64::__m256; 3],
     inv_direction: [std::arch::x86_64::__m256; 3],
     /// Per axis, whether the rays go toward negative values (the same for all: one octant).
     negative: [bool; 3],
@@ -210,6 +211,11 @@ impl Lanes {
                 lane(|r| r.origin.y),
                 lane(|r| r.origin.z),
             ],
+            direction: [
+                lane(|r| r.direction.x),
+                lane(|r| r.direction.y),
+                lane(|r| r.direction.z),
+            ],
             inv_direction: [
                 lane(|r| r.inv_direction.x),
                 lane(|r| r.inv_direction.y),
@@ -224,7 +230,7 @@ impl Lanes {
     /// child, in the same order, so its bit is that test's, bit for bit.
     #[target_feature(enable = "avx2")]
     #[inline]
-    fn node_hits(&self, node: &CwBvhNode, tmax: &[f32; PACKET], active: u32) -> u64 {
+    fn node_hits(&self, node: &CwBvhNode, tmax: std::arch::x86_64::__m256, active: u32) -> u64 {
         use std::arch::x86_64::*;
         let extent = node.compute_extent();
         let p = Vec3A::from(node.p);
@@ -238,38 +244,93 @@ impl Lanes {
         let (inv_x, o_x) = axis(0, extent.x, p.x);
         let (inv_y, o_y) = axis(1, extent.y, p.y);
         let (inv_z, o_z) = axis(2, extent.z, p.z);
-        let order = |lo: &[u8; 8], hi: &[u8; 8], negative: bool| {
-            if negative { (*hi, *lo) } else { (*lo, *hi) }
-        };
-        let (near_x, far_x) = order(&node.child_min_x, &node.child_max_x, self.negative[0]);
-        let (near_y, far_y) = order(&node.child_min_y, &node.child_max_y, self.negative[1]);
-        let (near_z, far_z) = order(&node.child_min_z, &node.child_max_z, self.negative[2]);
-        let slab = |q: u8, inv: __m256, o: __m256| {
-            _mm256_add_ps(_mm256_mul_ps(_mm256_set1_ps(q as f32), inv), o)
-        };
-        let epsilon = _mm256_set1_ps(NODE_EPSILON);
-        // SAFETY: a 32-byte load from a 32-byte array.
+        // SAFETY: an 8-byte load from an 8-byte array.
         #[allow(unsafe_code)]
-        let ray_tmax = unsafe { _mm256_loadu_ps(tmax.as_ptr()) };
+        let bytes = |v: &[u8; 8]| unsafe {
+            _mm256_cvtepi32_ps(_mm256_cvtepu8_epi32(_mm_loadl_epi64(
+                v.as_ptr() as *const __m128i
+            )))
+        };
+        // The children's near and far planes, all eight per register.
+        let planes = |lo: &[u8; 8], hi: &[u8; 8], negative: bool| {
+            let (lo, hi) = (bytes(lo), bytes(hi));
+            if negative { (hi, lo) } else { (lo, hi) }
+        };
+        let (near_x, far_x) = planes(&node.child_min_x, &node.child_max_x, self.negative[0]);
+        let (near_y, far_y) = planes(&node.child_min_y, &node.child_max_y, self.negative[1]);
+        let (near_z, far_z) = planes(&node.child_min_z, &node.child_max_z, self.negative[2]);
+        let epsilon = _mm256_set1_ps(NODE_EPSILON);
         let mut lanes = 0u64;
         for j in 0..8 {
             if node.child_meta[j] == 0 {
                 continue;
             }
+            // Child j's plane in every lane, then the slab distance of each lane's ray.
+            let child = _mm256_set1_epi32(j as i32);
+            let slab = |q: __m256, inv: __m256, o: __m256| {
+                let q = _mm256_permutevar8x32_ps(q, child);
+                _mm256_add_ps(_mm256_mul_ps(q, inv), o)
+            };
             let tmin = _mm256_max_ps(
-                slab(near_x[j], inv_x, o_x),
-                _mm256_max_ps(slab(near_y[j], inv_y, o_y), slab(near_z[j], inv_z, o_z)),
+                slab(near_x, inv_x, o_x),
+                _mm256_max_ps(slab(near_y, inv_y, o_y), slab(near_z, inv_z, o_z)),
             );
-            let tmax = _mm256_min_ps(
-                slab(far_x[j], inv_x, o_x),
-                _mm256_min_ps(slab(far_y[j], inv_y, o_y), slab(far_z[j], inv_z, o_z)),
+            let tmax_child = _mm256_min_ps(
+                slab(far_x, inv_x, o_x),
+                _mm256_min_ps(slab(far_y, inv_y, o_y), slab(far_z, inv_z, o_z)),
             );
             let tmin = _mm256_max_ps(tmin, epsilon);
-            let tmax = _mm256_min_ps(tmax, ray_tmax);
-            let hit = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(tmin, tmax)) as u32;
+            let tmax_child = _mm256_min_ps(tmax_child, tmax);
+            let hit = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(tmin, tmax_child)) as u32;
             lanes |= ((hit & active) as u64) << (8 * j);
         }
         lanes
+    }
+
+    /// The lanes of `active` whose rays meet `tri` at a distance in `[tmin, tmax)`, and the
+    /// distances: [`RtTri::intersect`] followed by the traversal's `t < tmax`, lane by lane,
+    /// with glam's SSE2 operations for `cross` and `dot` in their order (`(x + y) + z`;
+    /// `a.y·b.z - a.z·b.y`), so the same answer bit for bit.
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    fn triangle_hits(
+        &self,
+        tri: &RtTri,
+        tmin: std::arch::x86_64::__m256,
+        tmax: std::arch::x86_64::__m256,
+        active: std::arch::x86_64::__m256,
+    ) -> (std::arch::x86_64::__m256, std::arch::x86_64::__m256) {
+        use std::arch::x86_64::*;
+        let splat = |v: Vec3A| v.to_array().map(|x| _mm256_set1_ps(x));
+        let (v0, e1, e2, ng) = (splat(tri.v0), splat(tri.e1), splat(tri.e2), splat(tri.ng));
+        let (mul, sub, add) = (_mm256_mul_ps, _mm256_sub_ps, _mm256_add_ps);
+        let dot = |a: [__m256; 3], b: [__m256; 3]| {
+            add(add(mul(a[0], b[0]), mul(a[1], b[1])), mul(a[2], b[2]))
+        };
+        let (o, d) = (self.origin, self.direction);
+        let c = [sub(v0[0], o[0]), sub(v0[1], o[1]), sub(v0[2], o[2])];
+        let r = [
+            sub(mul(d[1], c[2]), mul(d[2], c[1])),
+            sub(mul(d[2], c[0]), mul(d[0], c[2])),
+            sub(mul(d[0], c[1]), mul(d[1], c[0])),
+        ];
+        let inv_det = _mm256_div_ps(_mm256_set1_ps(1.0), dot(ng, d));
+        let u = mul(dot(r, e2), inv_det);
+        let v = mul(dot(r, e1), inv_det);
+        let t = mul(dot(ng, c), inv_det);
+        let zero = _mm256_setzero_ps();
+        let inside = _mm256_and_ps(
+            _mm256_and_ps(
+                _mm256_cmp_ps::<_CMP_GE_OQ>(u, zero),
+                _mm256_cmp_ps::<_CMP_GE_OQ>(v, zero),
+            ),
+            _mm256_cmp_ps::<_CMP_LE_OQ>(add(u, v), _mm256_set1_ps(1.0)),
+        );
+        let within = _mm256_and_ps(
+            _mm256_cmp_ps::<_CMP_GE_OQ>(t, tmin),
+            _mm256_cmp_ps::<_CMP_LT_OQ>(t, tmax),
+        );
+        (_mm256_and_ps(_mm256_and_ps(inside, within), active), t)
     }
 }
 
@@ -778,10 +839,13 @@ impl Bvh {
         rays: &[Ray; PACKET],
         n: usize,
     ) -> [Option<(u32, f32)>; PACKET] {
+        use std::arch::x86_64::*;
         let lanes = Lanes::new(rays);
-        let mut traverse = *rays;
-        let mut tmax = rays.map(|r| r.tmax);
-        let mut found = [(0u32, f32::INFINITY); PACKET];
+        let tmin = _mm256_set1_ps(rays[0].tmin);
+        let tmax0 = _mm256_set1_ps(rays[0].tmax);
+        // Per lane: the closest hit so far (the traversal's `tmax`) and its triangle.
+        let (mut tmax, mut found) = (tmax0, _mm256_setzero_si256());
+        let lane_bits = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
         let oct_inv4 = octant_inv4(rays[0].direction);
         // obvhs's traversal (`traverse!`) with one group (children left, by priority bit)
         // per level on the stack, and their lanes beside them.
@@ -812,7 +876,7 @@ impl Bvh {
                 depth += 1;
             }
             let node = &bvh.nodes[child as usize];
-            let lanes_of_child = lanes.node_hits(node, &tmax, active);
+            let lanes_of_child = lanes.node_hits(node, tmax, active);
             // The children's lanes into the node's hit mask, as `node_hits_avx2` builds it.
             let (child_bits8, bit_index8) = node.get_child_and_index_bits(oct_inv4);
             let (mut hits, mut lanes_of_slot) = (0u32, 0u64);
@@ -838,17 +902,19 @@ impl Bvh {
                 let k = 31 - primitives.leading_zeros();
                 primitives &= !(1 << k);
                 let id = node.primitive_base_idx + k;
-                let mut r = lanes_of_primitive[k as usize];
-                while r != 0 {
-                    let i = r.trailing_zeros() as usize;
-                    r &= r - 1;
-                    let t = self.triangles[id as usize].intersect(&traverse[i]);
-                    if t < traverse[i].tmax {
-                        found[i] = (id, t);
-                        traverse[i].tmax = t;
-                        tmax[i] = t;
-                    }
-                }
+                let r = _mm256_set1_epi32(lanes_of_primitive[k as usize] as i32);
+                let active = _mm256_castsi256_ps(_mm256_cmpeq_epi32(
+                    _mm256_and_si256(r, lane_bits),
+                    lane_bits,
+                ));
+                let (hit, t) =
+                    lanes.triangle_hits(&self.triangles[id as usize], tmin, tmax, active);
+                tmax = _mm256_blendv_ps(tmax, t, hit);
+                found = _mm256_blendv_epi8(
+                    found,
+                    _mm256_set1_epi32(id as i32),
+                    _mm256_castps_si256(hit),
+                );
             }
             group = PacketGroup {
                 child_base: node.child_base_idx,
@@ -856,10 +922,15 @@ impl Bvh {
                 lanes: lanes_of_slot,
             };
         }
-        std::array::from_fn(|i| {
-            let (id, t) = found[i];
-            (i < n && t < rays[i].tmax).then_some((id, t))
-        })
+        let (mut t, mut id) = ([0f32; PACKET], [0u32; PACKET]);
+        // SAFETY: 32-byte stores into 32-byte arrays.
+        #[allow(unsafe_code)]
+        unsafe {
+            _mm256_storeu_ps(t.as_mut_ptr(), tmax);
+            _mm256_storeu_si256(id.as_mut_ptr() as *mut __m256i, found);
+        }
+        // A lane whose `tmax` never shrank found nothing.
+        std::array::from_fn(|i| (i < n && t[i] < rays[i].tmax).then_some((id[i], t[i])))
     }
 
     /// Whether anything lies on the open segment `origin + t·dir`, `t` in `(tmin, tmax)`.
