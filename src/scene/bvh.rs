@@ -108,6 +108,23 @@ fn node_hits(isa: Isa, node: &CwBvhNode, ray: &Ray, oct_inv4: u32) -> u32 {
 #[target_feature(enable = "avx2")]
 #[inline]
 fn node_hits_avx2(node: &CwBvhNode, ray: &Ray, oct_inv4: u32) -> u32 {
+    let mut hit = child_hits_avx2(node, ray, ray.tmax);
+    let (child_bits8, bit_index8) = node.get_child_and_index_bits(oct_inv4);
+    let mut mask = 0;
+    while hit != 0 {
+        let j = hit.trailing_zeros() * 8;
+        hit &= hit - 1;
+        mask |= ((child_bits8 >> j) as u32 & 0xff) << ((bit_index8 >> j) as u32 & 0xff);
+    }
+    mask
+}
+
+/// Bit `j` set where `ray`, up to `tmax`, enters the box of child `j` of `node` (the slab test
+/// of [`node_hits_avx2`], before it maps children to obvhs's hit mask).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn child_hits_avx2(node: &CwBvhNode, ray: &Ray, tmax: f32) -> u32 {
     use std::arch::x86_64::*;
     let dir_inv = node.compute_extent() * ray.inv_direction;
     let origin = (Vec3A::from(node.p) - ray.origin) * ray.inv_direction;
@@ -150,18 +167,12 @@ fn node_hits_avx2(node: &CwBvhNode, ray: &Ray, oct_inv4: u32) -> u32 {
         origin.z,
     );
     let tmin = _mm256_max_ps(tmin_x, _mm256_max_ps(tmin_y, tmin_z));
-    let tmax = _mm256_min_ps(tmax_x, _mm256_min_ps(tmax_y, tmax_z));
     let tmin = _mm256_max_ps(tmin, _mm256_set1_ps(NODE_EPSILON));
-    let tmax = _mm256_min_ps(tmax, _mm256_set1_ps(ray.tmax));
-    let mut hit = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(tmin, tmax)) as u32;
-    let (child_bits8, bit_index8) = node.get_child_and_index_bits(oct_inv4);
-    let mut mask = 0;
-    while hit != 0 {
-        let j = hit.trailing_zeros() * 8;
-        hit &= hit - 1;
-        mask |= ((child_bits8 >> j) as u32 & 0xff) << ((bit_index8 >> j) as u32 & 0xff);
-    }
-    mask
+    let tmax = _mm256_min_ps(
+        _mm256_min_ps(tmax_x, _mm256_min_ps(tmax_y, tmax_z)),
+        _mm256_set1_ps(tmax),
+    );
+    _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(tmin, tmax)) as u32
 }
 
 /// obvhs's `ray_get_octant_inv4` (crate-private): which of the eight orders the traversal
@@ -172,6 +183,10 @@ fn octant_inv4(dir: Vec3A) -> u32 {
         | (if dir.y < 0.0 { 0 } else { 0x0202_0202 })
         | (if dir.z < 0.0 { 0 } else { 0x0101_0101 })
 }
+
+/// Up to how many active rays of a packet a node is tested ray by ray ([`child_hits_avx2`]),
+/// not over all lanes at once ([`Lanes::node_hits`]).
+const LANES_TESTED_ALONE: u32 = 4;
 
 /// A group of children left to visit in a packet traversal: obvhs's `current_group` (the base
 /// index of the children, their priority bits in the top byte, the node's `imask` in the low
@@ -804,7 +819,7 @@ impl Bvh {
             let octant = octant_inv4(rays[0].direction);
             if rays.iter().all(|r| octant_inv4(r.direction) == octant) {
                 // SAFETY: a BVH's `isa` is `Isa::detect()`, which is `Avx2` only where the CPU
-                // has it.
+                // has AVX2 and BMI2.
                 #[allow(unsafe_code)]
                 let found = unsafe { self.closest_packet(bvh, &rays, n) };
                 for ((hit, found), ray) in hits.iter_mut().zip(found).zip(&rays).take(n) {
@@ -832,7 +847,7 @@ impl Bvh {
     /// with the same `tmax` at each test: so the same answer, bit for bit
     /// (`packets_answer_as_single_rays`).
     #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
+    #[target_feature(enable = "avx2,bmi2")]
     fn closest_packet(
         &self,
         bvh: &CwBvh,
@@ -876,7 +891,25 @@ impl Bvh {
                 depth += 1;
             }
             let node = &bvh.nodes[child as usize];
-            let lanes_of_child = lanes.node_hits(node, tmax, active);
+            let lanes_of_child = if active.count_ones() > LANES_TESTED_ALONE {
+                lanes.node_hits(node, tmax, active)
+            } else {
+                // Few rays: the single-ray test of each costs less than one over all lanes.
+                let mut t = [0f32; PACKET];
+                // SAFETY: a 32-byte store into a 32-byte array.
+                #[allow(unsafe_code)]
+                unsafe {
+                    _mm256_storeu_ps(t.as_mut_ptr(), tmax)
+                };
+                let (mut lanes_of_child, mut r) = (0u64, active);
+                while r != 0 {
+                    let i = r.trailing_zeros();
+                    r &= r - 1;
+                    let hit = child_hits_avx2(node, &rays[i as usize], t[i as usize]);
+                    lanes_of_child |= _pdep_u64(hit as u64, 0x0101_0101_0101_0101) << i;
+                }
+                lanes_of_child
+            };
             // The children's lanes into the node's hit mask, as `node_hits_avx2` builds it.
             let (child_bits8, bit_index8) = node.get_child_and_index_bits(oct_inv4);
             let (mut hits, mut lanes_of_slot) = (0u32, 0u64);
