@@ -797,7 +797,7 @@ impl Bvh {
         })
     }
 
-    /// [`Self::closest_hit`] of each ray `origins[i] + t·dirs[i]` into `hits[i]`. Up to
+    /// [`Self::closest_hit`] of each ray `origins[i] + t·dirs[i]` into `hits[i]`. Two to
     /// [`PACKET`] rays of one direction octant are traced together where the CPU has AVX2 and
     /// no triangle is cut out ([`Self::closest_packet`]); others one by one. Same answers.
     #[inline(always)]
@@ -811,7 +811,7 @@ impl Bvh {
     ) {
         let n = origins.len().min(dirs.len()).min(hits.len());
         #[cfg(target_arch = "x86_64")]
-        if let (Isa::Avx2, None, Some(bvh), 1..=PACKET) = (self.isa, &self.cutouts, &self.cwbvh, n)
+        if let (Isa::Avx2, None, Some(bvh), 2..=PACKET) = (self.isa, &self.cutouts, &self.cwbvh, n)
         {
             let rays: [Ray; PACKET] = std::array::from_fn(|i| {
                 let i = i.min(n - 1);
