@@ -13,7 +13,7 @@ use crate::light::sky::{SkyContext, SkySample, SkySampler};
 use crate::light::{LightSet, Mixture, Strategy, Technique};
 use crate::material::Material;
 use crate::sampling::{Frame, Sampler, SamplerKind, power_heuristic};
-use crate::scene::bvh::Tracer;
+use crate::scene::bvh::{Hit, Tracer};
 use crate::scene::{NO_ATTRIBUTES, NO_LIGHT, Scene};
 use crate::surface::SurfacePoint;
 
@@ -183,6 +183,30 @@ impl<'a> Integrator<'a> {
         stats: &mut Stats,
         contexts: &mut PathContexts,
     ) -> Vec3 {
+        self.radiance_from(tracer, origin, dir, None, rng, stats, contexts)
+    }
+
+    /// Whether a path's first ray is a closest-hit query, whose answer a caller may trace
+    /// ahead for [`Self::radiance_from`]: with polygon lights and no bounce, the camera sees
+    /// the lights through [`Self::emission_along`] instead.
+    pub fn camera_hits_traced(&self) -> bool {
+        self.settings.max_depth > 0 || !self.polygon_lights
+    }
+
+    /// [`Self::radiance_traced`] given the closest hit of the first ray, `origin + t·dir` with
+    /// `t` in `(0, ∞)`, if the caller traced it (`Some`, where [`Self::camera_hits_traced`]).
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    pub fn radiance_from<T: Tracer>(
+        &self,
+        tracer: &T,
+        origin: Vec3,
+        dir: Vec3,
+        mut camera_hit: Option<Option<Hit>>,
+        rng: &mut Sampler,
+        stats: &mut Stats,
+        contexts: &mut PathContexts,
+    ) -> Vec3 {
         let geometry = &*self.scene.geometry;
         let mut l = Vec3::ZERO;
         let mut beta = Vec3::ONE;
@@ -205,7 +229,11 @@ impl<'a> Integrator<'a> {
             if depth > 0 {
                 stats.bounce_rays += 1;
             }
-            let Some(hit) = tracer.closest_hit(o, d, 0.0, f32::INFINITY) else {
+            let hit = match camera_hit.take() {
+                Some(hit) => hit,
+                None => tracer.closest_hit(o, d, 0.0, f32::INFINITY),
+            };
+            let Some(hit) = hit else {
                 l += beta * self.environment_along(d, previous.map(|(x, _, pdf)| (x, pdf)));
                 break;
             };

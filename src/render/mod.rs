@@ -15,7 +15,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use crate::camera::RayGenerator;
 pub use crate::isa::Isa;
-use crate::scene::bvh::{ShadowCache, Tracer};
+use crate::scene::bvh::{PACKET, ShadowCache, Tracer};
 use film::Film;
 use integrator::{Integrator, PathContexts};
 use stats::Stats;
@@ -104,7 +104,8 @@ pub fn render_tile_isa<T: Tracer>(
             }
         }
     }
-    tile_samples(integrator, tracer, rays, tiles, tile, pass, stats)
+    // One camera ray at a time: packets are traced with AVX2 only.
+    tile_samples::<T, 1>(integrator, tracer, rays, tiles, tile, pass, stats)
 }
 
 /// [`tile_samples`] for [`Isa::Avx2`]: everything it inlines is compiled with these features.
@@ -119,12 +120,13 @@ fn tile_avx2<T: Tracer>(
     pass: u32,
     stats: &mut Stats,
 ) -> Vec<Vec3> {
-    tile_samples(integrator, tracer, rays, tiles, tile, pass, stats)
+    tile_samples::<T, PACKET>(integrator, tracer, rays, tiles, tile, pass, stats)
 }
 
-/// The body of [`render_tile`], inlined into each instruction-set variant.
+/// The body of [`render_tile`], inlined into each instruction-set variant, which traces the
+/// camera rays of `P` pixels at a time (at most [`PACKET`]).
 #[inline(always)]
-fn tile_samples<T: Tracer>(
+fn tile_samples<T: Tracer, const P: usize>(
     integrator: &Integrator,
     tracer: &T,
     rays: &RayGenerator,
@@ -141,13 +143,30 @@ fn tile_samples<T: Tracer>(
     // The tile's shading points lie close together: their shadow rays share blockers.
     let tracer = &ShadowCache::new(tracer);
     let samplers = settings.sampler.pass(settings.seed, pass);
+    // Camera rays are traced in packets of a row's consecutive pixels, which take nearly the
+    // same path through the BVH; each path then continues from its hit, pixel by pixel.
+    let traced = integrator.camera_hits_traced();
     for y in y0..y0 + h {
-        for x in x0..x0 + w {
-            let mut rng = samplers.start(x, y, tiles.width);
-            let jitter = rng.uniform2();
-            let (o, d) = rays.ray((Vec2::new(x as f32, y as f32) + jitter) / size);
-            let l = integrator.radiance_traced(tracer, o, d, &mut rng, stats, &mut contexts);
-            pixels.push(stats.finite_or_counted(l));
+        for x in (x0..x0 + w).step_by(P) {
+            let n = (x0 + w - x).min(P as u32) as usize;
+            let mut rngs: [_; P] =
+                std::array::from_fn(|i| samplers.start(x + i.min(n - 1) as u32, y, tiles.width));
+            let (mut origins, mut dirs) = ([Vec3::ZERO; P], [Vec3::ZERO; P]);
+            for (i, rng) in rngs.iter_mut().enumerate().take(n) {
+                let jitter = rng.uniform2();
+                let pixel = Vec2::new((x + i as u32) as f32, y as f32);
+                (origins[i], dirs[i]) = rays.ray((pixel + jitter) / size);
+            }
+            let mut hits = [None; P];
+            if traced {
+                tracer.closest_hits(&origins[..n], &dirs[..n], 0.0, f32::INFINITY, &mut hits);
+            }
+            for (i, rng) in rngs.iter_mut().enumerate().take(n) {
+                let hit = traced.then_some(hits[i]);
+                let (o, d) = (origins[i], dirs[i]);
+                let l = integrator.radiance_from(tracer, o, d, hit, rng, stats, &mut contexts);
+                pixels.push(stats.finite_or_counted(l));
+            }
         }
     }
     pixels
