@@ -135,8 +135,8 @@ impl Material {
 
     /// `[E(wo), P(specular lobes)]` at `cos θo` (see [`Self::lobe_weights`]).
     fn lobe_at(&self, cos_o: f32) -> [f32; 2] {
-        // Without a specular lobe both are exactly zero: skip the table (building it is a
-        // fifth of a second that Lambertian scenes need not wait for).
+        // Without a specular lobe both are exactly zero: skip the table (building it takes
+        // about 0.1 s that Lambertian scenes need not wait for).
         if !self.has_specular() {
             return [0.0, 0.0];
         }
