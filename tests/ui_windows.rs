@@ -47,6 +47,8 @@ fn window_strategies_overlay_flip_and_add() {
     // Every lit point of the room is in front of a window: the overlay says so.
     let shares = frame.primary.as_ref().unwrap().shares(None);
     assert!(share(shares, Region::Antiantumbra) > 0.9, "{shares:?}");
+    // The legend says what antishadow samples in front of a window: projection, not portal.
+    h.get_by_label("antiantumbra: projection");
     // Portal strategy: window-area samples.
     h.get_by_label("portal").click();
     h.step();

@@ -4,8 +4,9 @@
 use egui::{Color32, ColorImage};
 use serde::{Deserialize, Serialize};
 
-use crate::light::Technique;
 use crate::light::antishadow::Region;
+use crate::light::sky::SkyTechnique;
+use crate::light::{Strategy, Technique};
 use crate::render::primary::PrimaryBuffer;
 
 /// Which overlay is drawn over the render.
@@ -46,6 +47,29 @@ pub(crate) fn region_colour(region: Region) -> Color32 {
     }
 }
 
+/// The legend's line for `region`: what the antishadow mode samples there, for area-light
+/// portals (`areas`) and for windows (`windows`) among the portals the legend describes. A
+/// window has two regions only, and in front of it (its antiantumbra) antishadow samples the
+/// environment within it, which counts as projection, where an area-light portal's
+/// antiantumbra uses the portal technique.
+pub(crate) fn legend_line(region: Region, areas: bool, windows: bool) -> String {
+    let name = |t: Option<Technique>| t.map_or("light alone", Technique::name);
+    let area = name(Strategy::Antishadow.technique(region));
+    let window = match region {
+        Region::Antiantumbra => Some(name(
+            SkyTechnique::of(Strategy::Antishadow, true).map(SkyTechnique::technique),
+        )),
+        Region::Behind => Some(name(None)),
+        _ => None,
+    };
+    let what = match window {
+        Some(w) if windows && !areas => w.to_owned(),
+        Some(w) if windows && w != area => format!("{area}; windows: {w}"),
+        _ => area.to_owned(),
+    };
+    format!("{}: {what}", region.name())
+}
+
 /// `None` is "the light alone" (behind, outside, or no portal).
 pub(crate) fn technique_colour(technique: Option<Technique>) -> Color32 {
     match technique {
@@ -83,4 +107,41 @@ pub(crate) fn overlay_image(
         })
         .collect();
     ColorImage::new([primary.width as usize, primary.height as usize], pixels)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn legend_names_what_windows_sample() {
+        let line = |r, areas, windows| legend_line(r, areas, windows);
+        // Area-light portals: the thesis's table.
+        assert_eq!(
+            line(Region::Antiantumbra, true, false),
+            "antiantumbra: portal"
+        );
+        assert_eq!(line(Region::Antiumbra, true, false), "antiumbra: light");
+        assert_eq!(line(Region::Behind, true, false), "behind: light alone");
+        // Windows: the environment within the window, counted as projection.
+        assert_eq!(
+            line(Region::Antiantumbra, false, true),
+            "antiantumbra: projection"
+        );
+        assert_eq!(line(Region::Behind, false, true), "behind: light alone");
+        // Both kinds: the line says where they differ.
+        assert_eq!(
+            line(Region::Antiantumbra, true, true),
+            "antiantumbra: portal; windows: projection"
+        );
+        assert_eq!(
+            line(Region::Antipenumbra, true, true),
+            "antipenumbra: projection"
+        );
+        // No portal at all: the area table, as before.
+        assert_eq!(
+            line(Region::Antiantumbra, false, false),
+            "antiantumbra: portal"
+        );
+    }
 }

@@ -170,8 +170,17 @@ impl PortalViewApp {
         {
             self.requested_size = (0, 0);
         }
-        // The legend: colours and the share of pixels in each region.
+        // The legend: colours and the share of pixels in each region, and what antishadow
+        // samples there for the kinds of portal it describes (overlay portals list area-light
+        // portals first, then windows).
         let shares = self.view.shares(self.overlay_portal);
+        let (areas, windows) = self.current.as_ref().map_or((true, false), |c| {
+            let n = c.rendered.portals.len();
+            match self.overlay_portal {
+                Some(i) => (i < n, i >= n),
+                None => (n > 0, !c.rendered.windows.is_empty()),
+            }
+        });
         egui::Grid::new("legend").num_columns(3).show(ui, |ui| {
             for (k, region) in Region::ALL.into_iter().enumerate() {
                 let (rect, _) =
@@ -184,12 +193,7 @@ impl PortalViewApp {
                 // the panel, which would resize the image and restart it.
                 let share = shares.map_or("   –  ".into(), |s| format!("{:>5.1}%", 100.0 * s[k]));
                 ui.label(egui::RichText::new(share).monospace());
-                let technique = Strategy::Antishadow.technique(region);
-                ui.label(format!(
-                    "{}: {}",
-                    region.name(),
-                    technique.map_or("light alone", Technique::name)
-                ));
+                ui.label(overlay::legend_line(region, areas, windows));
                 ui.end_row();
             }
         });
