@@ -120,3 +120,26 @@ pub struct ImageArgs {
     #[command(flatten)]
     pub environment: EnvironmentArgs,
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::CommandFactory;
+
+    /// Doc comments are the help text: rustdoc's link syntax must not leak into it.
+    #[test]
+    fn help_text_has_no_rustdoc_links() {
+        let mut cli = Cli::command();
+        cli.build();
+        let mut helps = vec![cli.render_long_help().to_string()];
+        for sub in cli.get_subcommands_mut() {
+            helps.push(sub.render_long_help().to_string());
+        }
+        assert!(helps.iter().any(|h| h.contains("stratified per pixel")));
+        for help in helps {
+            for line in help.lines() {
+                assert!(!line.contains("[`"), "rustdoc link in the help: {line}");
+            }
+        }
+    }
+}

@@ -74,7 +74,8 @@ impl Rng {
 pub enum SamplerKind {
     /// Independent uniform numbers (PCG32): what the statistical tests assume.
     Independent,
-    /// Owen-scrambled Sobol' points in Z-order ([`sobol::ZSobol`]): stratified per pixel.
+    // The doc line is the CLI's help text too: no rustdoc link in it (see `sobol::ZSobol`).
+    /// Owen-scrambled Sobol' points in Z-order: stratified per pixel.
     #[default]
     Sobol,
 }
