@@ -22,7 +22,7 @@ use super::portal::Portal;
 use super::punctual::Lamp;
 use super::{LightSet, Strategy, Technique, split_share};
 use crate::sampling::polygon::{
-    Cut, Plane, Verts, clip_convex_into, convex_hull_in_plane, merge_close,
+    Cut, Plane, Verts, clip_convex_in, convex_hull_in_plane, merge_close_into,
     sample_polygon_area_ordered,
 };
 use crate::sampling::spherical::SphericalPolygon;
@@ -688,7 +688,8 @@ pub fn projected_light_into(portal: &Portal, x: Vec3, q: &mut Verts) {
     if portal.planes.is_hull() {
         projected = convex_hull_in_plane(&projected, plane.n);
     }
-    clip_convex_into(&projected, &portal.polygon, q);
+    let (mut first, mut second) = (Verts::new(), Verts::new());
+    let clipped = clip_convex_in(&projected, &portal.polygon, &mut first, &mut second);
     // From x on (or within rounding of) an antishadow plane, a projected light vertex lies on a
     // portal edge's line, or a portal vertex on a projected light edge: the clip keeps two
     // copies of one point, and the plane through x and the edge between them, which the
@@ -696,11 +697,12 @@ pub fn projected_light_into(portal: &Portal, x: Vec3, q: &mut Verts) {
     // clip's rounding, a few ulps of the coordinates; edges as short as 1e-5 of the scene
     // (the light clip's tolerance) carry no shape worth keeping either.
     let mut max_coordinate = 0.0f32;
-    for v in q.iter() {
+    for v in clipped {
         max_coordinate = max_coordinate.max(v.abs().max_element());
     }
     let tol = MERGE_TOLERANCE * portal.planes.scale() + 64.0 * f32::EPSILON * max_coordinate;
-    merge_close(q, tol);
+    // Merged as it is copied into `q`.
+    merge_close_into(clipped, tol, q);
 }
 
 /// Relative to the scene's scale: vertices of `Q(x)` this close merge (see [`projected_light`]).
