@@ -566,11 +566,12 @@ impl LightSampler {
         if ctx.light_only {
             return p_light;
         }
-        let portals: f32 = ctx
-            .terms()
-            .iter()
-            .map(|t| t.weight * term_pdf(scene, ctx.x, t, p_light, wi))
-            .sum();
+        // A plain loop: the iterator's `sum` was left out of line, compiled without the
+        // renderer's instruction-set features (about 150 instructions per call in fig8c).
+        let mut portals = 0.0f32;
+        for t in ctx.terms() {
+            portals += t.weight * term_pdf(scene, ctx.x, t, p_light, wi);
+        }
         ctx.alpha * p_light + (1.0 - ctx.alpha) * portals
     }
 
