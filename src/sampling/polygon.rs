@@ -393,8 +393,13 @@ impl ConvexPolygon {
     /// Whether `p`, assumed on the polygon's plane, is inside it (boundary included).
     #[inline(always)]
     pub fn contains_coplanar(&self, p: Vec3) -> bool {
-        self.edges()
-            .all(|(a, b)| (b - a).cross(p - a).dot(self.normal) >= 0.0)
+        // `(b − a) × (p − a) · n = (n × (b − a)) · (p − a)`: the stored inward edge normal, one
+        // dot product per edge (the light hit of every projection or portal sample, and of
+        // BSDF samples, takes it).
+        self.edge_planes
+            .iter()
+            .zip(&self.vertices)
+            .all(|(plane, &a)| plane.n.dot(p - a) >= 0.0)
     }
 }
 
