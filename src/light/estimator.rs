@@ -704,6 +704,13 @@ pub fn projected_light_into(portal: &Portal, x: Vec3, q: &mut Verts) {
     let tol = MERGE_TOLERANCE * portal.planes.scale() + 64.0 * f32::EPSILON * max_coordinate;
     // Merged as it is copied into `q`.
     merge_close_into(clipped, tol, q);
+    // Wound clockwise as seen from x, as `SphericalPolygon::set` takes it (its winding normal
+    // pointing away from x): reversed here in f32, not there in f64 with the edge normals
+    // formed again (set still checks the winding, so a wrong guess, from x within rounding
+    // of the light's plane, costs only that).
+    if portal.planes.projection_winds_counter_clockwise(x) {
+        q.reverse();
+    }
 }
 
 /// Relative to the scene's scale: vertices of `Q(x)` this close merge (see [`projected_light`]).
