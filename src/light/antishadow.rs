@@ -544,6 +544,16 @@ impl AntishadowPlanes {
         &self.light_behind
     }
 
+    /// Whether the light behind the portal, projected from `x` (in front of the portal) onto
+    /// the portal's plane, winds counter-clockwise as seen from `x`: a projection from `x`
+    /// keeps the winding seen from `x`, so a polygon light's (counter-clockwise around its
+    /// normal) does where `x` is on its emitting side, and a solid's outline is hulled
+    /// counter-clockwise around the portal's normal, which points towards `x`.
+    #[inline(always)]
+    pub fn projection_winds_counter_clockwise(&self, x: Vec3) -> bool {
+        self.hull.is_some() || self.light_plane.signed_distance(x) > 0.0
+    }
+
     /// The diameter of portal and light together, which every tolerance is relative to.
     pub fn scale(&self) -> f32 {
         self.scale

@@ -22,7 +22,7 @@ use super::portal::Portal;
 use super::punctual::Lamp;
 use super::{LightSet, Strategy, Technique, split_share};
 use crate::sampling::polygon::{
-    Cut, Plane, Verts, clip_convex_into, convex_hull_in_plane, merge_close,
+    Cut, Plane, Verts, clip_convex_in, convex_hull_in_plane, merge_close_into,
     sample_polygon_area_ordered,
 };
 use crate::sampling::spherical::SphericalPolygon;
@@ -566,11 +566,12 @@ impl LightSampler {
         if ctx.light_only {
             return p_light;
         }
-        let portals: f32 = ctx
-            .terms()
-            .iter()
-            .map(|t| t.weight * term_pdf(scene, ctx.x, t, p_light, wi))
-            .sum();
+        // A plain loop: the iterator's `sum` was left out of line, compiled without the
+        // renderer's instruction-set features (about 150 instructions per call in fig8c).
+        let mut portals = 0.0f32;
+        for t in ctx.terms() {
+            portals += t.weight * term_pdf(scene, ctx.x, t, p_light, wi);
+        }
         ctx.alpha * p_light + (1.0 - ctx.alpha) * portals
     }
 
@@ -688,7 +689,8 @@ pub fn projected_light_into(portal: &Portal, x: Vec3, q: &mut Verts) {
     if portal.planes.is_hull() {
         projected = convex_hull_in_plane(&projected, plane.n);
     }
-    clip_convex_into(&projected, &portal.polygon, q);
+    let (mut first, mut second) = (Verts::new(), Verts::new());
+    let clipped = clip_convex_in(&projected, &portal.polygon, &mut first, &mut second);
     // From x on (or within rounding of) an antishadow plane, a projected light vertex lies on a
     // portal edge's line, or a portal vertex on a projected light edge: the clip keeps two
     // copies of one point, and the plane through x and the edge between them, which the
@@ -696,11 +698,19 @@ pub fn projected_light_into(portal: &Portal, x: Vec3, q: &mut Verts) {
     // clip's rounding, a few ulps of the coordinates; edges as short as 1e-5 of the scene
     // (the light clip's tolerance) carry no shape worth keeping either.
     let mut max_coordinate = 0.0f32;
-    for v in q.iter() {
+    for v in clipped {
         max_coordinate = max_coordinate.max(v.abs().max_element());
     }
     let tol = MERGE_TOLERANCE * portal.planes.scale() + 64.0 * f32::EPSILON * max_coordinate;
-    merge_close(q, tol);
+    // Merged as it is copied into `q`.
+    merge_close_into(clipped, tol, q);
+    // Wound clockwise as seen from x, as `SphericalPolygon::set` takes it (its winding normal
+    // pointing away from x): reversed here in f32, not there in f64 with the edge normals
+    // formed again (set still checks the winding, so a wrong guess, from x within rounding
+    // of the light's plane, costs only that).
+    if portal.planes.projection_winds_counter_clockwise(x) {
+        q.reverse();
+    }
 }
 
 /// Relative to the scene's scale: vertices of `Q(x)` this close merge (see [`projected_light`]).

@@ -91,6 +91,10 @@ pub struct ConvexPolygon {
     /// The largest distance of a vertex from the first: scales the slack of
     /// [`Self::ray_through`] (fixed per polygon, so not recomputed per evaluation).
     reach: f64,
+    /// Per edge `(v_i, v_{i+1})`, the plane through it perpendicular to the polygon, positive
+    /// inside: [`clip_convex_into`]'s half-spaces, fixed per polygon (a clip runs per shading
+    /// point).
+    edge_planes: ArrayVec<Plane, MAX_POLYGON_VERTICES>,
 }
 
 /// Slack of [`ConvexPolygon::ray_through`]'s inside test, as a distance on the polygon's plane
@@ -100,6 +104,20 @@ pub struct ConvexPolygon {
 /// polygon gets a pdf that no sample reaches; its share of the area is
 /// `perimeter · slack / area`, 1e-4 for a 4 cm portal 2 m away.
 const EDGE_SLACK: f64 = 8.0 * f32::EPSILON as f64;
+
+/// The inward planes of a convex polygon's edges: for counter-clockwise vertices around
+/// `normal`, `normal × edge` points into the polygon.
+fn edge_planes(vertices: &[Vec3], normal: Vec3) -> ArrayVec<Plane, MAX_POLYGON_VERTICES> {
+    super::cyclic_pairs(vertices)
+        .map(|(a, b)| {
+            let inward = normal.cross(b - a);
+            Plane {
+                n: inward,
+                d: inward.dot(a),
+            }
+        })
+        .collect()
+}
 
 /// The largest distance of a vertex from the first.
 fn reach(vertices: &[Vec3]) -> f64 {
@@ -180,6 +198,7 @@ impl ConvexPolygon {
         let fan_cdf = fan_cdf(&vertices);
         Ok(ConvexPolygon {
             reach: reach(&vertices),
+            edge_planes: edge_planes(&vertices, normal),
             vertices,
             normal,
             area,
@@ -265,6 +284,7 @@ impl ConvexPolygon {
         ConvexPolygon {
             fan_cdf: fan_cdf(&vertices),
             reach: reach(&vertices),
+            edge_planes: edge_planes(&vertices, -self.normal),
             vertices,
             normal: -self.normal,
             plane: self.plane.flipped(),
@@ -373,8 +393,13 @@ impl ConvexPolygon {
     /// Whether `p`, assumed on the polygon's plane, is inside it (boundary included).
     #[inline(always)]
     pub fn contains_coplanar(&self, p: Vec3) -> bool {
-        self.edges()
-            .all(|(a, b)| (b - a).cross(p - a).dot(self.normal) >= 0.0)
+        // `(b − a) × (p − a) · n = (n × (b − a)) · (p − a)`: the stored inward edge normal, one
+        // dot product per edge (the light hit of every projection or portal sample, and of
+        // BSDF samples, takes it).
+        self.edge_planes
+            .iter()
+            .zip(&self.vertices)
+            .all(|(plane, &a)| plane.n.dot(p - a) >= 0.0)
     }
 }
 
@@ -402,15 +427,20 @@ fn diameter(points: &[Vec3]) -> f32 {
 }
 
 /// Twice the vector area of a closed polygon (Newell's method), relative to its first vertex
-/// so that polygons far from the origin keep their precision.
+/// so that polygons far from the origin keep their precision. Always inlined: the ordered
+/// light draw takes it per piece, per sample.
+#[inline(always)]
 pub fn newell_normal(vertices: &[Vec3]) -> Vec3 {
     let Some(&v0) = vertices.first() else {
         return Vec3::ZERO;
     };
     let n = vertices.len();
-    (0..n)
-        .map(|i| (vertices[i] - v0).cross(vertices[(i + 1) % n] - v0))
-        .sum()
+    let mut sum = Vec3::ZERO;
+    for i in 0..n {
+        let next = if i + 1 == n { 0 } else { i + 1 };
+        sum += (vertices[i] - v0).cross(vertices[next] - v0);
+    }
+    sum
 }
 
 /// The area-weighted centroid of a convex polygon.
@@ -466,32 +496,58 @@ pub type Cut = ArrayVec<Plane, { MAX_POLYGON_VERTICES + 1 }>;
 #[inline(always)]
 pub fn sample_polygon_area_ordered(vertices: &[Vec3], cut: &[Plane], u: Vec2) -> Vec3 {
     // Walk the pieces in order, each one's area the difference of the inside's before and
-    // after its plane, and stop at the one `u.x` falls in (most draws stop early).
+    // after its plane, and stop at the one `u.x` falls in (most draws stop early). The inside
+    // is clipped into two buffers in turn (it is `vertices` before the first plane), and a
+    // piece is clipped with the negated distances of its plane (what the flipped plane gives,
+    // to the bit), each vertex's distance computed once.
     let mut area = polygon_area(vertices);
     let mut target = u.x * area;
-    let mut inside: Verts = Verts::new();
-    inside.extend(vertices.iter().copied());
+    let (mut first, mut second) = (Verts::new(), Verts::new());
+    // Which holds the inside: `vertices` (0), `first` (1) or `second` (2).
+    let mut holder = 0u8;
     for plane in cut {
-        let next = clip_by_plane(&inside, *plane);
-        let next_area = polygon_area(&next);
+        let (inside, next): (&[Vec3], &mut Verts) = match holder {
+            0 => (vertices, &mut first),
+            1 => (&first, &mut second),
+            _ => (&second, &mut first),
+        };
+        let mut distances = [0.0f32; MAX_CLIP_VERTICES];
+        for (d, &p) in distances.iter_mut().zip(inside.iter()) {
+            *d = plane.signed_distance(p);
+        }
+        let distances = &distances[..inside.len()];
+        clip_by_distances_into(inside, distances, next);
+        let next_area = polygon_area(next);
         let a = area - next_area;
         if a > 0.0 && target < a {
-            let piece = clip_by_plane(&inside, plane.flipped());
+            let mut outside = [0.0f32; MAX_CLIP_VERTICES];
+            for (o, &d) in outside.iter_mut().zip(distances) {
+                *o = -d;
+            }
+            let mut piece = Verts::new();
+            clip_by_distances_into(inside, &outside[..distances.len()], &mut piece);
             let ux = (target / a).clamp(0.0, super::ONE_BELOW);
             return sample_polygon_area(&piece, Vec2::new(ux, u.y));
         }
         target -= a.max(0.0);
-        (inside, area) = (next, next_area);
+        area = next_area;
+        holder = if holder == 1 { 2 } else { 1 };
     }
+    let inside: &[Vec3] = match holder {
+        0 => vertices,
+        1 => &first,
+        _ => &second,
+    };
     if area <= 0.0 {
         // Rounding ran past the last piece with area: the plain draw, same density.
         return sample_polygon_area(vertices, u);
     }
     let ux = (target / area).clamp(0.0, super::ONE_BELOW);
-    sample_polygon_area(&inside, Vec2::new(ux, u.y))
+    sample_polygon_area(inside, Vec2::new(ux, u.y))
 }
 
 /// The area of a (possibly degenerate) convex polygon.
+#[inline(always)]
 pub fn polygon_area(vertices: &[Vec3]) -> f32 {
     0.5 * newell_normal(vertices).length()
 }
@@ -539,36 +595,34 @@ fn push(out: &mut Verts, p: Vec3) {
 
 /// Clips `subject` (coplanar with `clip`) to the inside of the convex polygon `clip`.
 pub fn clip_convex(subject: &[Vec3], clip: &ConvexPolygon) -> Verts {
-    let mut out = Verts::new();
-    clip_convex_into(subject, clip, &mut out);
-    out
+    let (mut first, mut second) = (Verts::new(), Verts::new());
+    clip_convex_in(subject, clip, &mut first, &mut second)
+        .iter()
+        .copied()
+        .collect()
 }
 
-/// [`clip_convex`] into `out` (a clip per shading point: no vertex array is moved).
+/// [`clip_convex`] with two buffers to clip into in turn: the clipped polygon, which is
+/// `subject` itself when no edge of `clip` cuts it, else one of the buffers (a clip per
+/// shading point: no vertex array is copied that need not be).
 #[inline(always)]
-pub fn clip_convex_into(subject: &[Vec3], clip: &ConvexPolygon, out: &mut Verts) {
-    out.clear();
-    out.extend(subject.iter().copied());
-    // `out` and `spare` take turns as source and destination.
-    let mut spare = Verts::new();
-    let mut in_spare = false;
-    let corners = clip.vertices();
-    for k in 0..corners.len() {
-        let (a, b) = (
-            corners[k],
-            corners[if k + 1 == corners.len() { 0 } else { k + 1 }],
-        );
-        let src = if in_spare { &spare } else { &*out };
-        if src.len() < 3 {
-            out.clear();
-            return;
-        }
-        // For counter-clockwise vertices, `normal × edge` points into the polygon.
-        let inward = clip.normal().cross(b - a);
-        let plane = Plane {
-            n: inward,
-            d: inward.dot(a),
+pub fn clip_convex_in<'a>(
+    subject: &'a [Vec3],
+    clip: &ConvexPolygon,
+    first: &'a mut Verts,
+    second: &'a mut Verts,
+) -> &'a [Vec3] {
+    // Which holds the polygon so far: `subject` (0), `first` (1) or `second` (2).
+    let mut holder = 0u8;
+    for plane in &clip.edge_planes {
+        let src: &[Vec3] = match holder {
+            0 => subject,
+            1 => first,
+            _ => second,
         };
+        if src.len() < 3 {
+            return &[];
+        }
         let mut distances = [0.0f32; MAX_CLIP_VERTICES];
         let mut all_inside = true;
         for (d, &p) in distances.iter_mut().zip(src.iter()) {
@@ -580,41 +634,51 @@ pub fn clip_convex_into(subject: &[Vec3], clip: &ConvexPolygon, out: &mut Verts)
             continue;
         }
         let distances = &distances[..src.len()];
-        if in_spare {
-            clip_by_distances_into(&spare, distances, out);
-        } else {
-            clip_by_distances_into(out, distances, &mut spare);
-        }
-        in_spare = !in_spare;
+        holder = match holder {
+            0 => {
+                clip_by_distances_into(subject, distances, first);
+                1
+            }
+            1 => {
+                clip_by_distances_into(first, distances, second);
+                2
+            }
+            _ => {
+                clip_by_distances_into(second, distances, first);
+                1
+            }
+        };
     }
-    if in_spare {
-        out.clear();
-        out.extend(spare.iter().copied());
+    match holder {
+        0 => subject,
+        1 => first,
+        _ => second,
     }
 }
 
-/// Drops each vertex within `tol` of the previous one kept, and trailing ones within `tol` of
-/// the first: a clip repeats, a few ulps apart, a vertex that lies on a clipping plane, and the
-/// edge between the copies has a direction made by rounding. What is kept is a subsequence of
-/// the vertices, so a convex polygon stays convex.
+/// Copies `vertices` into `out`, dropping each vertex within `tol` of the previous one kept,
+/// and trailing ones within `tol` of the first: a clip repeats, a few ulps apart, a vertex that
+/// lies on a clipping plane, and the edge between the copies has a direction made by
+/// rounding. What is kept is a subsequence of the vertices, so a convex polygon stays convex.
 #[inline(always)]
-pub fn merge_close(vertices: &mut Verts, tol: f32) {
+pub fn merge_close_into(vertices: &[Vec3], tol: f32, out: &mut Verts) {
     // `merge_close_by` written out: its closure was left out of line on the renderer's path.
     let tol2 = tol * tol;
-    let mut kept = 0;
-    for i in 0..vertices.len() {
-        if kept == 0 || vertices[kept - 1].distance_squared(vertices[i]) > tol2 {
-            vertices[kept] = vertices[i];
-            kept += 1;
+    out.clear();
+    for &v in vertices {
+        if out
+            .last()
+            .is_none_or(|kept| kept.distance_squared(v) > tol2)
+        {
+            push(out, v);
         }
     }
-    while kept > 1 && vertices[0].distance_squared(vertices[kept - 1]) <= tol2 {
-        kept -= 1;
+    while out.len() > 1 && out[0].distance_squared(out[out.len() - 1]) <= tol2 {
+        out.pop();
     }
-    vertices.truncate(kept);
 }
 
-/// [`merge_close`] for any vertex type and closeness: moves the kept vertices to the front of
+/// [`merge_close_into`] in place, for any vertex type and closeness: moves the kept vertices to the front of
 /// `vertices` and returns how many there are.
 #[inline(always)]
 pub fn merge_close_by<T: Copy>(vertices: &mut [T], close: impl Fn(T, T) -> bool) -> usize {

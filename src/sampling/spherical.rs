@@ -4,7 +4,7 @@
 use arrayvec::ArrayVec;
 use glam::{DVec2, DVec3, Vec2, Vec3};
 
-use super::polygon::{MAX_CLIP_VERTICES, Plane, Verts, sample_polygon_area};
+use super::polygon::{MAX_CLIP_VERTICES, Plane, sample_polygon_area};
 
 /// Below this solid angle (sr) a [`SphericalPolygon`] is sampled by area instead of by solid angle.
 ///
@@ -207,23 +207,27 @@ fn nearest_point(vertices: &[DVec3], edge_normals: &[DVec3], foot: DVec3) -> DVe
 /// than a vertex, so that no fan triangle joins nearly opposite directions when `x` is close to a
 /// large polygon.
 ///
-/// Built once per shading point, in place ([`Self::set`]): everything is stored inline.
+/// Built once per shading point, in place ([`Self::set`]): everything is stored inline, in
+/// fixed arrays of which the first `len` entries hold the polygon (written by index, without
+/// a length check per entry).
 #[derive(Clone, Debug)]
 pub struct SphericalPolygon {
     origin: Vec3,
+    /// The number of vertices (0 for an empty polygon).
+    len: usize,
     /// Wound clockwise as seen from `origin`: the vertices minus `origin` when the polygon is
     /// area-sampled, else the unit directions to them (each sampler reads only its own).
-    points: Verts,
+    points: [Vec3; MAX_CLIP_VERTICES],
     /// Unit direction to the polygon's point nearest `origin`: the apex of the fan.
     apex: Vec3,
     /// Normals of the planes through `origin` and each edge `(v_i, v_{i+1})`, pointing inside,
     /// of length `sin` of the edge's arc (`u_i × u_{i+1}` for the unit directions `u_i`).
-    edge_normals: Verts,
+    edge_normals: [Vec3; MAX_CLIP_VERTICES],
     /// Per edge, `(EDGE_TOLERANCE · |m̂_i|)²`: the inside test's slack without normalising.
-    edge_slack: ArrayVec<f32, MAX_CLIP_VERTICES>,
+    edge_slack: [f32; MAX_CLIP_VERTICES],
     /// Per fan triangle `(apex, v_i, v_{i+1})`, `i = 0..n`: the cumulative half solid angle
     /// `Φ_i = Σ_{k ≤ i} Ω_k / 2` as the complex number `ρ_i·(cos Φ_i, sin Φ_i)`, `ρ_i > 0`.
-    fan: ArrayVec<DVec2, MAX_CLIP_VERTICES>,
+    fan: [DVec2; MAX_CLIP_VERTICES],
     /// Bit `i` is set when fan triangle `i` exceeds [`MIN_TRIANGLE_SOLID_ANGLE`]: the others
     /// are never picked.
     fan_usable: u64,
@@ -250,11 +254,12 @@ impl SphericalPolygon {
     pub fn empty() -> SphericalPolygon {
         SphericalPolygon {
             origin: Vec3::ZERO,
-            points: Verts::new(),
+            len: 0,
+            points: [Vec3::ZERO; MAX_CLIP_VERTICES],
             apex: Vec3::ZERO,
-            edge_normals: Verts::new(),
-            edge_slack: ArrayVec::new(),
-            fan: ArrayVec::new(),
+            edge_normals: [Vec3::ZERO; MAX_CLIP_VERTICES],
+            edge_slack: [0.0; MAX_CLIP_VERTICES],
+            fan: [DVec2::ZERO; MAX_CLIP_VERTICES],
             fan_usable: 0,
             half_solid_angle: 0.0,
             solid_angle: 0.0,
@@ -269,10 +274,7 @@ impl SphericalPolygon {
     /// `new` returns `None`.
     #[inline(always)]
     pub fn set(&mut self, x: Vec3, vertices: &[Vec3]) -> bool {
-        self.points.clear();
-        self.edge_normals.clear();
-        self.edge_slack.clear();
-        self.fan.clear();
+        self.len = 0;
         self.fan_usable = 0;
         self.half_solid_angle = 0.0;
         self.solid_angle = 0.0;
@@ -282,25 +284,31 @@ impl SphericalPolygon {
         }
         // Set-up runs in f64, where differences of f32 positions are exact: a small polygon far
         // from `x` or from the world origin keeps its shape, and solid angles near 2π keep their
-        // digits. (Plain index loops: iterator adapters were left out of line here, compiled
-        // without the renderer's instruction-set features.)
+        // digits. (Plain index loops over fixed arrays: iterator adapters were left out of line
+        // here, compiled without the renderer's instruction-set features, and pushes checked
+        // the capacity per entry.)
         let xd = x.as_dvec3();
-        let mut offsets: ArrayVec<DVec3, MAX_CLIP_VERTICES> = ArrayVec::new();
-        let mut offset_sum = DVec3::ZERO;
-        for v in vertices {
-            if !v.is_finite() {
-                return false;
-            }
-            let r = v.as_dvec3() - xd;
-            offset_sum += r;
-            offsets.push(r);
-        }
         // The sum of `r_i × (r_{i+1} − r_i)` (= r_i × r_{i+1}, without its cancellation for a
-        // small polygon far away) is twice the vector area (Newell's, about x).
+        // small polygon far away) is twice the vector area (Newell's, about x); its terms are
+        // the edge-plane normals of this winding.
+        let mut offsets: ArrayVec<DVec3, MAX_CLIP_VERTICES> = ArrayVec::new();
+        let mut normals: ArrayVec<DVec3, MAX_CLIP_VERTICES> = ArrayVec::new();
+        let mut offset_sum = DVec3::ZERO;
         let mut twice_area = DVec3::ZERO;
         for i in 0..n {
-            let (r, r_next) = (offsets[i], offsets[if i + 1 == n { 0 } else { i + 1 }]);
-            twice_area += r.cross(r_next - r);
+            let next = if i + 1 == n { 0 } else { i + 1 };
+            // `r_{i+1}` is formed again from its vertex: the same number as `offsets[i + 1]`.
+            let (r, r_next) = (vertices[i].as_dvec3() - xd, vertices[next].as_dvec3() - xd);
+            offsets.push(r);
+            offset_sum += r;
+            let m = r.cross(r_next - r);
+            normals.push(m);
+            twice_area += m;
+        }
+        // Offsets of f32 positions cannot overflow f64, so the sum is finite exactly when every
+        // vertex is.
+        if !offset_sum.is_finite() {
+            return false;
         }
         let twice_area_length = twice_area.length();
         if !(twice_area_length > 0.0 && twice_area_length.is_finite()) {
@@ -313,23 +321,20 @@ impl SphericalPolygon {
         let mut away = winding_normal;
         if away.dot(mean_offset) < 0.0 {
             away = -away;
-            offsets.reverse();
+            offsets[..n].reverse();
+            for i in 0..n {
+                let (r, r_next) = (offsets[i], offsets[if i + 1 == n { 0 } else { i + 1 }]);
+                normals[i] = r.cross(r_next - r);
+            }
         }
-        let mut normals: ArrayVec<DVec3, MAX_CLIP_VERTICES> = ArrayVec::new();
-        for i in 0..n {
-            let (r, r_next) = (offsets[i], offsets[if i + 1 == n { 0 } else { i + 1 }]);
-            normals.push(r.cross(r_next - r));
-        }
-        // One length per vertex: the scale of the edge-on test, and the unit directions.
-        let mut unit: ArrayVec<DVec3, MAX_CLIP_VERTICES> = ArrayVec::new();
+        // One length per vertex: the scale of the edge-on test, and the unit directions
+        // `u_i = r_i / |r_i|` (formed where they are used).
         let mut inverse_length: ArrayVec<f64, MAX_CLIP_VERTICES> = ArrayVec::new();
         let mut scale = 0.0f64;
         for r in &offsets {
             let length = r.length();
             scale = scale.max(length);
-            let inverse = length.recip();
-            inverse_length.push(inverse);
-            unit.push(*r * inverse);
+            inverse_length.push(length.recip());
         }
         let height = away.dot(mean_offset);
         if height.is_nan() || height <= PLANE_TOLERANCE * scale {
@@ -347,21 +352,34 @@ impl SphericalPolygon {
         //
         // Per edge, `m̂_i = m_i / (|r_i| |r_{i+1}|)` is `u_i × u_{i+1}` (unit directions) from
         // the accurate normal: it gives the fan triangle's triple product `apex · m̂_i` and the
-        // edge's plane for the inside test, without a second square root per vertex.
-        let mut apex_dot: ArrayVec<f64, MAX_CLIP_VERTICES> = ArrayVec::new();
-        for u in &unit {
-            apex_dot.push(apex.dot(*u));
-        }
+        // edge's plane for the inside test, without a second square root per vertex. The unit
+        // direction and `apex · u_i` of a vertex serve the two triangles that share it.
+        let unit_of = |i: usize| offsets[i] * inverse_length[i];
+        let edge_normal =
+            |i: usize, next: usize| normals[i] * (inverse_length[i] * inverse_length[next]);
+        // `(apex, u_i, u_{i+1})`'s Van Oosterom–Strackee number, given `apex · u` of both.
+        let phasor =
+            |(unit, apex_dot): (DVec3, f64), (unit_next, apex_dot_next): (DVec3, f64), m| {
+                DVec2::new(
+                    1.0 + apex_dot + unit.dot(unit_next) + apex_dot_next,
+                    apex.dot(m).abs(),
+                )
+            };
+        let first_unit = unit_of(0);
+        let first = (first_unit, apex.dot(first_unit));
+        let mut vertex = first;
         let mut cumulative = DVec2::X;
-        let mut phasors: ArrayVec<DVec2, MAX_CLIP_VERTICES> = ArrayVec::new();
         let (mut smallest, mut largest) = (1.0f64, 1.0f64);
         for i in 0..n {
             let next = if i + 1 == n { 0 } else { i + 1 };
-            let m = normals[i] * (inverse_length[i] * inverse_length[next]);
-            let z = DVec2::new(
-                1.0 + apex_dot[i] + unit[i].dot(unit[next]) + apex_dot[next],
-                apex.dot(m).abs(),
-            );
+            let vertex_next = if next == 0 {
+                first
+            } else {
+                let u = unit_of(next);
+                (u, apex.dot(u))
+            };
+            let m = edge_normal(i, next);
+            let z = phasor(vertex, vertex_next, m);
             // Ω_i > MIN ⇔ tan(Ω_i/2) > MIN/2 (to f64 rounding of the tangent).
             if z.y > 0.0 && z.y > 0.5 * f64::from(MIN_TRIANGLE_SOLID_ANGLE) * z.x {
                 self.fan_usable |= 1 << i;
@@ -372,44 +390,47 @@ impl SphericalPolygon {
             let magnitude = cumulative.x.abs() + cumulative.y.abs();
             smallest = smallest.min(magnitude);
             largest = largest.max(magnitude);
-            phasors.push(z);
-            self.fan.push(cumulative);
+            self.fan[i] = cumulative;
             // `m̂ · ω >= −ε |m̂|` as `d >= 0 || d² <= ε² |m̂|²` (see `contains`).
-            self.edge_normals.push(m.as_vec3());
-            self.edge_slack.push(
-                (f64::from(EDGE_TOLERANCE) * f64::from(EDGE_TOLERANCE) * m.length_squared()) as f32,
-            );
+            self.edge_normals[i] = m.as_vec3();
+            self.edge_slack[i] =
+                (f64::from(EDGE_TOLERANCE) * f64::from(EDGE_TOLERANCE) * m.length_squared()) as f32;
+            // Solid-angle sampling's points; replaced by the offsets below if area-sampled.
+            self.points[i] = vertex.0.as_vec3();
+            vertex = vertex_next;
         }
         if !(1e-150..=1e150).contains(&smallest) || !(1e-150..=1e150).contains(&largest) {
-            // Rare: redone with each product rescaled as it leaves the range.
-            self.fan.clear();
+            // Rare: redone with each product rescaled as it leaves the range (the numbers
+            // formed again as above, not kept: that cost every polygon a copy).
             cumulative = DVec2::X;
-            for z in &phasors {
-                cumulative = complex_mul(cumulative, *z);
+            for i in 0..n {
+                let next = if i + 1 == n { 0 } else { i + 1 };
+                let (u, u_next) = (unit_of(i), unit_of(next));
+                let z = phasor(
+                    (u, apex.dot(u)),
+                    (u_next, apex.dot(u_next)),
+                    edge_normal(i, next),
+                );
+                cumulative = complex_mul(cumulative, z);
                 let magnitude = cumulative.x.abs() + cumulative.y.abs();
                 if !(1e-150..=1e150).contains(&magnitude) {
                     cumulative /= magnitude;
                 }
-                self.fan.push(cumulative);
+                self.fan[i] = cumulative;
             }
         }
         let half_solid_angle = cumulative.y.atan2(cumulative.x);
         let solid_angle = (2.0 * half_solid_angle) as f32;
         if !(solid_angle > 0.0 && solid_angle.is_finite()) {
-            self.fan.clear();
             self.fan_usable = 0;
-            self.edge_normals.clear();
-            self.edge_slack.clear();
             return false;
         }
-        let kept = if solid_angle < SMALL_SOLID_ANGLE {
-            &offsets
-        } else {
-            &unit
-        };
-        for r in kept {
-            self.points.push(r.as_vec3());
+        if solid_angle < SMALL_SOLID_ANGLE {
+            for i in 0..n {
+                self.points[i] = offsets[i].as_vec3();
+            }
         }
+        self.len = n;
         self.origin = x;
         self.apex = apex.as_vec3();
         self.half_solid_angle = half_solid_angle;
@@ -421,6 +442,13 @@ impl SphericalPolygon {
         self.height = height as f32;
         self.area = (0.5 * twice_area_length) as f32;
         true
+    }
+
+    /// The polygon's points: the unit directions to its vertices, or their offsets from the
+    /// origin when area-sampled.
+    #[inline(always)]
+    fn points(&self) -> &[Vec3] {
+        &self.points[..self.len]
     }
 
     /// The point the polygon is seen from.
@@ -455,11 +483,11 @@ impl SphericalPolygon {
     #[inline(always)]
     pub fn sample(&self, u: Vec2) -> Option<(Vec3, f32)> {
         if self.is_area_sampled() {
-            let wi = sample_polygon_area(&self.points, u).try_normalize()?;
+            let wi = sample_polygon_area(self.points(), u).try_normalize()?;
             return Some((wi, self.area_pdf(wi)));
         }
         let (i, sin_half, cos_half) = self.pick_fan_triangle(u.x)?;
-        let d = &self.points;
+        let d = self.points();
         let next = if i + 1 == d.len() { 0 } else { i + 1 };
         let wi = sample_spherical_triangle_part(self.apex, d[i], d[next], sin_half, cos_half, u.y)?;
         Some((wi, 1.0 / self.solid_angle))
@@ -488,7 +516,8 @@ impl SphericalPolygon {
         if self.plane.n.dot(wi) >= 0.0 {
             return false;
         }
-        for (m, &slack) in self.edge_normals.iter().zip(&self.edge_slack) {
+        let n = self.len;
+        for (m, &slack) in self.edge_normals[..n].iter().zip(&self.edge_slack[..n]) {
             let d = m.dot(wi);
             if d < 0.0 && d * d > slack {
                 return false;
@@ -516,7 +545,7 @@ impl SphericalPolygon {
         let (sin_t, cos_t) = target.sin_cos();
         let mut picked = None;
         let mut before = DVec2::X;
-        for (i, &after) in self.fan.iter().enumerate() {
+        for (i, &after) in self.fan[..self.len].iter().enumerate() {
             if self.fan_usable & (1 << i) != 0 {
                 picked = Some((i, before));
                 // sin(Φ_i − T) ≥ 0 ⇔ Φ_i ≥ T, both angles being in [0, π).
@@ -741,7 +770,7 @@ mod tests {
             if polygon.is_area_sampled() {
                 continue;
             }
-            let (apex, d) = (polygon.apex.as_dvec3(), &polygon.points);
+            let (apex, d) = (polygon.apex.as_dvec3(), polygon.points());
             let mut sum = 0.0f64;
             for (i, (p, q)) in crate::sampling::cyclic_pairs(d).enumerate() {
                 sum += solid_angle_f64(apex, p.as_dvec3(), q.as_dvec3());
@@ -773,7 +802,7 @@ mod tests {
             if polygon.is_area_sampled() {
                 continue;
             }
-            let (apex, d) = (polygon.apex.as_dvec3(), &polygon.points);
+            let (apex, d) = (polygon.apex.as_dvec3(), polygon.points());
             let areas: Vec<f64> = crate::sampling::cyclic_pairs(d)
                 .map(|(p, q)| solid_angle_f64(apex, p.as_dvec3(), q.as_dvec3()))
                 .collect();
@@ -799,10 +828,7 @@ mod tests {
     /// normals, the triple products from `apex · m̂_i`, and left the edge normals unnormalised
     /// (the inside test squares instead): the reference for the new form.
     fn set_by_old_form(polygon: &mut SphericalPolygon, x: Vec3, vertices: &[Vec3]) -> bool {
-        polygon.points.clear();
-        polygon.edge_normals.clear();
-        polygon.edge_slack.clear();
-        polygon.fan.clear();
+        polygon.len = 0;
         polygon.fan_usable = 0;
         polygon.half_solid_angle = 0.0;
         polygon.solid_angle = 0.0;
@@ -875,28 +901,30 @@ mod tests {
             if !(1e-150..=1e150).contains(&magnitude) {
                 cumulative /= magnitude;
             }
-            polygon.fan.push(cumulative);
+            polygon.fan[i] = cumulative;
         }
         let half_solid_angle = cumulative.y.atan2(cumulative.x);
         let solid_angle = (2.0 * half_solid_angle) as f32;
         if !(solid_angle > 0.0 && solid_angle.is_finite()) {
-            polygon.fan.clear();
             polygon.fan_usable = 0;
             return false;
         }
         // The old form: unit normals, normalised in f64 (its slack is ε² for a unit normal).
-        for m in &normals {
+        for (i, m) in normals.iter().enumerate() {
             let unit_normal = m.normalize_or_zero();
-            polygon.edge_normals.push(unit_normal.as_vec3());
-            polygon
-                .edge_slack
-                .push((f64::from(EDGE_TOLERANCE).powi(2) * unit_normal.length_squared()) as f32);
+            polygon.edge_normals[i] = unit_normal.as_vec3();
+            polygon.edge_slack[i] =
+                (f64::from(EDGE_TOLERANCE).powi(2) * unit_normal.length_squared()) as f32;
         }
-        if solid_angle < SMALL_SOLID_ANGLE {
-            polygon.points.extend(offsets.iter().map(|r| r.as_vec3()));
+        let kept = if solid_angle < SMALL_SOLID_ANGLE {
+            &offsets
         } else {
-            polygon.points.extend(unit.iter().map(|d| d.as_vec3()));
+            &unit
+        };
+        for (i, r) in kept.iter().enumerate() {
+            polygon.points[i] = r.as_vec3();
         }
+        polygon.len = n;
         polygon.origin = x;
         polygon.apex = apex.as_vec3();
         polygon.half_solid_angle = half_solid_angle;
@@ -936,15 +964,17 @@ mod tests {
             assert!(new.plane().n.abs_diff_eq(old.plane().n, 1e-6));
             assert!((new.height - old.height).abs() <= 1e-6 * old.height);
             assert!(new.apex.abs_diff_eq(old.apex, 1e-6));
-            assert_eq!(new.points.len(), old.points.len());
+            assert_eq!(new.len, old.len);
             assert_eq!(new.fan_usable, old.fan_usable);
-            for (a, b) in new.fan.iter().zip(&old.fan) {
+            for (a, b) in new.fan[..new.len].iter().zip(&old.fan[..old.len]) {
                 let (a, b) = (a.y.atan2(a.x), b.y.atan2(b.x));
                 assert!((a - b).abs() <= 1e-7 * (1.0 + b.abs()), "{a} vs {b}");
             }
             for _ in 0..20 {
                 let w = random_unit(&mut rng);
-                let near_edge = old.edge_normals.iter().any(|m| m.dot(w).abs() < 1e-5);
+                let near_edge = old.edge_normals[..old.len]
+                    .iter()
+                    .any(|m| m.dot(w).abs() < 1e-5);
                 if !near_edge {
                     assert_eq!(new.pdf(w) > 0.0, old.pdf(w) > 0.0, "{w}");
                     inside += (old.pdf(w) > 0.0) as usize;
