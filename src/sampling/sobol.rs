@@ -36,8 +36,13 @@
 //! Those vectors are only two or four lanes wide, and the 64-bit hashes before them are
 //! scalar. The pixels of a packet (the consecutive pixels whose camera rays are traced
 //! together) share the pass and so every draw's seed: [`ZSobolPass::packet`] computes their
-//! first [`PACKET_DRAWS`] draws together, each step for all pixels at once, which AVX2 runs
-//! as full vectors, and each pixel's sampler then reads them from its table.
+//! first [`PACKET_DRAWS`] draws together, each step for all eight pixels at once (full AVX2
+//! vectors; 64-bit multiplications, which AVX2 lacks, take three 32-bit ones), and each
+//! pixel's sampler then reads them from its table. A draw then takes about 26 instructions
+//! per pixel, 35 with its share of the packet's set-up, and a direct-light render of the
+//! peer scenes 5–10% fewer instructions (light sampling; 2–7% for antishadow). Four tabled
+//! draws save about half as much, eight less than six: a direct-light path makes six, and
+//! draws that a path never makes are wasted.
 
 /// Passes per epoch: the pass occupies the low `LOG2_PASSES` bits of the index.
 pub const LOG2_PASSES: u32 = 16;
