@@ -149,8 +149,9 @@ fn tile_samples<T: Tracer, const P: usize>(
     for y in y0..y0 + h {
         for x in (x0..x0 + w).step_by(P) {
             let n = (x0 + w - x).min(P as u32) as usize;
-            let mut rngs: [_; P] =
-                std::array::from_fn(|i| samplers.start(x + i.min(n - 1) as u32, y, tiles.width));
+            // A partial packet repeats its last pixel in the lanes it does not use.
+            let xs = std::array::from_fn(|i| x + i.min(n - 1) as u32);
+            let mut rngs: [_; P] = samplers.start_packet(xs, y, tiles.width);
             let (mut origins, mut dirs) = ([Vec3::ZERO; P], [Vec3::ZERO; P]);
             for (i, rng) in rngs.iter_mut().enumerate().take(n) {
                 let jitter = rng.uniform2();

@@ -123,6 +123,22 @@ impl PassSampler {
             PassSampler::Sobol(pass) => Sampler::Sobol(pass.pixel(x, y)),
         }
     }
+
+    /// The samplers of pixels `(x[i], y)`, the same numbers as [`PassSampler::start`] gives:
+    /// for a packet of pixels traced together, whose first Sobol' draws are computed together.
+    #[inline(always)]
+    pub fn start_packet<const P: usize>(
+        &self,
+        x: [u32; P],
+        y: u32,
+        width: u32,
+    ) -> [Sampler<'_>; P] {
+        match self {
+            // A lone pixel computes each draw when it needs it: none is wasted.
+            PassSampler::Sobol(pass) if P > 1 => pass.packet(x, y).map(Sampler::Sobol),
+            _ => x.map(|x| self.start(x, y, width)),
+        }
+    }
 }
 
 /// The random numbers of one path: the integrator draws them in a fixed order (camera, then
@@ -411,6 +427,58 @@ mod tests {
         // f32 rounding of the argument and the terms, not the polynomial, bounds the error.
         assert!(worst_quarter < 2e-7, "quarter: {worst_quarter}");
         assert!(worst_turn < 5e-7, "turn: {worst_turn}");
+    }
+
+    /// The draws of every pixel of a packet, bit for bit, one by one against its own sampler:
+    /// both kinds, packets of 8 and 1 pixels, partial ones, passes of later epochs, the three
+    /// calls in a random order, groups that straddle the table's end, and draws past it.
+    #[test]
+    fn packet_samplers_match_pixel_samplers() {
+        fn draw(rng: &mut Sampler, call: u32) -> Vec<u32> {
+            let u = match call {
+                0 => vec![rng.uniform()],
+                1 => rng.uniform2().to_array().to_vec(),
+                2 => {
+                    let ([u], v) = rng.uniforms_uniform2();
+                    vec![u, v.x, v.y]
+                }
+                _ => {
+                    let ([u, w], v) = rng.uniforms_uniform2();
+                    vec![u, w, v.x, v.y]
+                }
+            };
+            u.iter().map(|u| u.to_bits()).collect()
+        }
+        fn check<const P: usize>(samplers: &PassSampler, rng: &mut Rng, width: u32) {
+            let n = 1 + rng.next_u32() % P as u32;
+            let (x, y) = (rng.next_u32() % (width - 7), rng.next_u32() % 4096);
+            let xs = std::array::from_fn(|i| x + (i as u32).min(n - 1));
+            let mut packet = samplers.start_packet::<P>(xs, y, width);
+            let mut pixels = xs.map(|x| samplers.start(x, y, width));
+            let calls: Vec<u32> = (0..8).map(|_| rng.next_u32() % 4).collect();
+            for (i, (a, b)) in packet.iter_mut().zip(&mut pixels).enumerate() {
+                for &call in &calls {
+                    assert_eq!(draw(a, call), draw(b, call), "pixel {i} of ({x}, {y})");
+                }
+            }
+        }
+        let mut rng = Rng::new(7, 11);
+        // Passes at the epochs' edges, and random ones.
+        let mut passes = vec![0, 1, 17, 65_535, 65_536, 65_537, 1 << 20, u32::MAX];
+        passes.extend((0..4).map(|_| rng.next_u32()));
+        for kind in SamplerKind::ALL {
+            for seed in [0, 1, 0xdead_beef, u64::MAX] {
+                for &pass in &passes {
+                    let samplers = kind.pass(seed, pass);
+                    for width in [8, 100, 1 << 20, u32::MAX] {
+                        for _ in 0..8 {
+                            check::<8>(&samplers, &mut rng, width);
+                            check::<1>(&samplers, &mut rng, width);
+                        }
+                    }
+                }
+            }
+        }
     }
 
     #[test]

@@ -32,6 +32,17 @@
 //! together ([`ZSobol::uniform2`], [`ZSobol::uniforms_uniform2`]) compile, for AVX2, to vector
 //! instructions (byte shuffles for the reversals). Together these take a draw from about 100
 //! instructions to about 80 (fig8a).
+//!
+//! Those vectors are only two or four lanes wide, and the 64-bit hashes before them are
+//! scalar. The pixels of a packet (the consecutive pixels whose camera rays are traced
+//! together) share the pass and so every draw's seed: [`ZSobolPass::packet`] computes their
+//! first [`PACKET_DRAWS`] draws together, each step for all eight pixels at once (full AVX2
+//! vectors; 64-bit multiplications, which AVX2 lacks, take three 32-bit ones), and each
+//! pixel's sampler then reads them from its table. A draw then takes about 26 instructions
+//! per pixel, 35 with its share of the packet's set-up, and a direct-light render of the
+//! peer scenes 5–10% fewer instructions (light sampling; 2–7% for antishadow). Four tabled
+//! draws save about half as much, eight less than six: a direct-light path makes six, and
+//! draws that a path never makes are wasted.
 
 /// Passes per epoch: the pass occupies the low `LOG2_PASSES` bits of the index.
 pub const LOG2_PASSES: u32 = 16;
@@ -40,6 +51,12 @@ pub const PASSES_PER_EPOCH: u32 = 1 << LOG2_PASSES;
 /// Draws whose scramble seeds [`ZSobolPass`] computes once for all pixels: the draws of a path
 /// of five vertices. Later draws hash their seed as they go.
 const TABLED_DIMENSIONS: usize = 32;
+
+/// Draws that [`ZSobolPass::packet`] computes for all pixels of a packet at once: those of a
+/// direct-light path (camera jitter; light pick, technique pick and light direction; lobe and
+/// BSDF direction). A draw that a path does not make is wasted work, so longer paths compute
+/// their later draws one by one.
+pub const PACKET_DRAWS: usize = 6;
 
 /// What the samplers of every pixel in one pass share: the index's pass bits and the seeds of
 /// each draw's scrambles before the pixel is mixed in, which depend only on the seed, the
@@ -72,11 +89,73 @@ impl ZSobolPass {
         let morton = morton2(x, y);
         ZSobol {
             pass: self,
-            index_rev: ((morton << LOG2_PASSES) | self.pass_bits).reverse_bits(),
-            pixel_key: mix_bits(morton ^ 0xD1B5_4A32_D192_ED03),
+            index_mixed: self.index_mixed(morton),
+            pixel_key: pixel_key(morton),
             dimension: 0,
+            drawn: None,
         }
     }
+
+    /// The samplers of pixels `(x[i], y)` in this pass, the same numbers as [`Self::pixel`]
+    /// gives, with their first [`PACKET_DRAWS`] draws computed here. Every step below is the
+    /// same for all `P` pixels (lanes), so that where compiled for AVX2 the loops over lanes
+    /// become vector instructions.
+    #[inline(always)]
+    pub fn packet<const P: usize>(&self, x: [u32; P], y: u32) -> [ZSobol<'_>; P] {
+        const { assert!(PACKET_DRAWS <= TABLED_DIMENSIONS) };
+        let (mut index_mixed, mut pixel_keys) = ([0; P], [0; P]);
+        for i in 0..P {
+            let morton = morton2(x[i], y);
+            index_mixed[i] = self.index_mixed(morton);
+            pixel_keys[i] = pixel_key(morton);
+        }
+        let mut drawn = [[[0.0; 2]; PACKET_DRAWS]; P];
+        for (d, &h) in self.dimension_seeds[..PACKET_DRAWS].iter().enumerate() {
+            // The 64-bit hashes (four lanes to an AVX2 vector) apart from the 32-bit steps
+            // (eight lanes), which would otherwise run four lanes at a time with them.
+            let (mut index_rev, mut seeds) = ([0; P], [0; P]);
+            for i in 0..P {
+                index_rev[i] = nested_scramble_rev_mixed(index_mixed[i], h);
+                seeds[i] = mix_bits(h ^ pixel_keys[i]);
+            }
+            // Both coordinates, as `uniform2` takes them; `uniform` takes the first.
+            let (mut coordinates, mut scrambles) = ([[0; P]; 2], [[0; P]; 2]);
+            for i in 0..P {
+                coordinates[0][i] = sobol0(index_rev[i]);
+                coordinates[1][i] = sobol1(index_rev[i]);
+                scrambles[0][i] = seeds[i] as u32;
+                scrambles[1][i] = (seeds[i] >> 32) as u32;
+            }
+            let mut u = [[0.0; P]; 2];
+            for c in 0..2 {
+                for i in 0..P {
+                    u[c][i] = scrambled_unit(coordinates[c][i], scrambles[c][i]);
+                }
+            }
+            for (i, drawn) in drawn.iter_mut().enumerate() {
+                drawn[d] = [u[0][i], u[1][i]];
+            }
+        }
+        std::array::from_fn(|i| ZSobol {
+            pass: self,
+            index_mixed: index_mixed[i],
+            pixel_key: pixel_keys[i],
+            dimension: 0,
+            drawn: Some(drawn[i]),
+        })
+    }
+
+    /// `morton << LOG2_PASSES | pass`, bit-reversed, through the nested scramble's first step.
+    #[inline(always)]
+    fn index_mixed(&self, morton: u64) -> u64 {
+        nested_scramble_premix(((morton << LOG2_PASSES) | self.pass_bits).reverse_bits())
+    }
+}
+
+/// The hash of a pixel's Morton code that keys its output scrambles.
+#[inline(always)]
+fn pixel_key(morton: u64) -> u64 {
+    mix_bits(morton ^ 0xD1B5_4A32_D192_ED03)
 }
 
 /// The seed of draw `dimension`'s scrambles under `key`, before the pixel is mixed in.
@@ -91,17 +170,32 @@ fn dimension_seed(key: u64, dimension: usize) -> u64 {
 pub struct ZSobol<'a> {
     /// What all pixels of this pass share.
     pass: &'a ZSobolPass,
-    /// `morton(x, y) << LOG2_PASSES | pass`, unscrambled, bit-reversed (as the scramble
-    /// takes it; reversed once here rather than at every draw).
-    index_rev: u64,
+    /// `morton(x, y) << LOG2_PASSES | pass`, bit-reversed (as the scramble takes it), through
+    /// the nested scramble's first step, which does not depend on the draw: done once here
+    /// rather than at every draw.
+    index_mixed: u64,
     /// The pixel, hashed: it keys the output scrambles, so each pixel's points are a net
     /// scrambled on its own.
     pixel_key: u64,
     /// Draws so far: each one is its own (padded) dimension.
     dimension: usize,
+    /// Both coordinates of the first draws, if computed with the packet's other pixels.
+    drawn: Option<[[f32; 2]; PACKET_DRAWS]>,
 }
 
 impl ZSobol<'_> {
+    /// The next `draws` draws, if the packet computed them all; a group that runs past the
+    /// table is computed as a whole, which gives the same numbers.
+    #[inline(always)]
+    fn take_drawn(&mut self, draws: usize) -> Option<&[[f32; 2]]> {
+        let drawn = self
+            .drawn
+            .as_ref()?
+            .get(self.dimension..self.dimension + draws)?;
+        self.dimension += draws;
+        Some(drawn)
+    }
+
     /// The scrambled index, bit-reversed, and the output scrambles' seeds of the next draw.
     #[inline(always)]
     fn next_draw(&mut self) -> (u64, u64) {
@@ -111,7 +205,7 @@ impl ZSobol<'_> {
         };
         self.dimension += 1;
         (
-            nested_scramble_rev(self.index_rev, h),
+            nested_scramble_rev_mixed(self.index_mixed, h),
             mix_bits(h ^ self.pixel_key),
         )
     }
@@ -119,6 +213,9 @@ impl ZSobol<'_> {
     /// Uniform in [0, 1): the first Sobol' dimension (van der Corput) of this draw's index.
     #[inline(always)]
     pub fn uniform(&mut self) -> f32 {
+        if let Some(&[[u, _]]) = self.take_drawn(1) {
+            return u;
+        }
         let (index_rev, seeds) = self.next_draw();
         scrambled_unit(sobol0(index_rev), seeds as u32)
     }
@@ -130,6 +227,12 @@ impl ZSobol<'_> {
     #[inline(always)]
     pub fn uniforms_uniform2<const N: usize>(&mut self) -> ([f32; N], glam::Vec2) {
         const { assert!(N <= 2) };
+        if let Some(drawn) = self.take_drawn(N + 1) {
+            return (
+                std::array::from_fn(|i| drawn[i][0]),
+                glam::Vec2::from(drawn[N]),
+            );
+        }
         let mut lanes = [(0, 0); 4];
         for lane in &mut lanes[..N] {
             let (index_rev, seeds) = self.next_draw();
@@ -149,6 +252,9 @@ impl ZSobol<'_> {
     /// (0, 2)-sequence, each Owen-scrambled with its own seed.
     #[inline(always)]
     pub fn uniform2(&mut self) -> glam::Vec2 {
+        if let Some(&[u]) = self.take_drawn(1) {
+            return glam::Vec2::from(u);
+        }
         let (index_rev, seeds) = self.next_draw();
         // The two lanes run the same steps: compiled for AVX2, the reversals and scrambles of
         // both are vector instructions.
@@ -168,6 +274,7 @@ fn scrambled_unit(coordinate: u32, seed: u32) -> f32 {
 }
 
 /// The Morton (Z-order) code of a pixel: the bits of `x` and `y` interleaved, `x` lowest.
+#[inline]
 pub fn morton2(x: u32, y: u32) -> u64 {
     fn spread(v: u32) -> u64 {
         let mut v = v as u64;
@@ -237,8 +344,19 @@ pub fn nested_scramble(index: u64, seed: u64) -> u64 {
 /// [`nested_scramble`] on the bit-reversed index, returning it bit-reversed: each step flips
 /// a bit by a function of the bits below it.
 #[inline]
-pub fn nested_scramble_rev(mut v: u64, seed: u64) -> u64 {
-    v ^= v.wrapping_mul(0x3d20_adea_9b5c_6f12);
+pub fn nested_scramble_rev(v: u64, seed: u64) -> u64 {
+    nested_scramble_rev_mixed(nested_scramble_premix(v), seed)
+}
+
+/// The first step of [`nested_scramble_rev`], the one that does not depend on the seed.
+#[inline(always)]
+fn nested_scramble_premix(v: u64) -> u64 {
+    v ^ v.wrapping_mul(0x3d20_adea_9b5c_6f12)
+}
+
+/// The steps of [`nested_scramble_rev`] after [`nested_scramble_premix`].
+#[inline(always)]
+fn nested_scramble_rev_mixed(mut v: u64, seed: u64) -> u64 {
     v = v.wrapping_add(seed);
     v = v.wrapping_mul((seed >> 32) | 1);
     v ^= v.wrapping_mul(0x0552_6c56_e1a4_c3d6);
