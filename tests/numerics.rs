@@ -14,6 +14,16 @@ use portalview::sampling::spherical::SphericalPolygon;
 use portalview::sampling::{Frame, Rng, cyclic_pairs};
 use portalview::scene::Scene;
 
+/// Every built-in scene, then [`far_small_portal`].
+fn builtin_scenes_and_far_small_portal() -> Vec<Scene> {
+    let mut scenes: Vec<Scene> = builtin::NAMES
+        .iter()
+        .map(|name| Scene::open(name).unwrap())
+        .collect();
+    scenes.push(far_small_portal());
+    scenes
+}
+
 /// A 4 cm portal tilted off the vertical, far from the world origin, under a 60 cm light.
 fn far_small_portal() -> Scene {
     let centre = Vec3::new(100.0, 2.5, 50.0);
@@ -135,11 +145,7 @@ fn samples_keep_their_pdf(q: &SphericalPolygon, n: usize, rng: &mut Rng) -> bool
 /// produce the edges of a few ulps that the merge removes.
 #[test]
 fn projections_near_antishadow_planes_keep_their_pdf() {
-    let mut scenes: Vec<Scene> = builtin::NAMES
-        .iter()
-        .map(|name| Scene::open(name).unwrap())
-        .collect();
-    scenes.push(far_small_portal());
+    let scenes = builtin_scenes_and_far_small_portal();
     let mut rng = Rng::new(5, 5);
     let (mut checked, mut broken, mut broken_unmerged) = (0usize, vec![], 0usize);
     for scene in &scenes {
@@ -191,11 +197,7 @@ fn unmerged_projection(portal: &Portal, x: Vec3) -> Option<Vec<Vec3>> {
 /// front of every portal of every built-in scene, and the far small portal.
 #[test]
 fn projections_come_wound_clockwise_from_x() {
-    let mut scenes: Vec<Scene> = builtin::NAMES
-        .iter()
-        .map(|name| Scene::open(name).unwrap())
-        .collect();
-    scenes.push(far_small_portal());
+    let scenes = builtin_scenes_and_far_small_portal();
     let mut rng = Rng::new(7, 7);
     let mut checked = 0usize;
     for scene in &scenes {
