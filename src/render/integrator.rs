@@ -418,13 +418,19 @@ impl<'a> Integrator<'a> {
     /// The light whose polygon the ray `o + t·d` meets first, and the distance `t`.
     #[inline(always)]
     fn nearest_light_polygon(&self, o: Vec3, d: Vec3) -> Option<(usize, f32)> {
-        self.scene
-            .geometry
-            .lights
-            .iter()
-            .enumerate()
-            .filter_map(|(i, l)| Some((i, l.polygon.as_ref()?.intersect(o, d)?)))
-            .min_by(|a, b| a.1.total_cmp(&b.1))
+        // A plain loop: the iterator's `min_by` was left out of line with the polygon test in
+        // it, compiled without the renderer's instruction-set features. The first of equal
+        // distances wins, as with `min_by`.
+        let mut nearest: Option<(usize, f32)> = None;
+        for (i, light) in self.scene.geometry.lights.iter().enumerate() {
+            let Some(t) = light.polygon.as_ref().and_then(|p| p.intersect(o, d)) else {
+                continue;
+            };
+            if nearest.is_none_or(|(_, best)| t.total_cmp(&best).is_lt()) {
+                nearest = Some((i, t));
+            }
+        }
+        nearest
     }
 
     /// The shading frame on the side the ray came from, or `None` where the shading normal
