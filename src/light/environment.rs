@@ -111,6 +111,7 @@ impl Environment {
 
     /// A unit world direction drawn proportional to the map's weight times the `sin θ` of the
     /// equirectangular map, and its solid-angle pdf; uniform on the sphere for a constant.
+    #[inline(always)]
     pub fn sample(&self, u: Vec2) -> Option<(Vec3, f32)> {
         match &self.map {
             Map::Constant(_) => {
@@ -169,6 +170,7 @@ impl Environment {
     }
 
     /// [`Self::radiance`] and [`Self::pdf`] at once, from one pixel lookup.
+    #[inline(always)]
     pub fn radiance_pdf(&self, w: Vec3) -> (Vec3, f32) {
         match &self.map {
             Map::Constant(c) => (*c * self.strength, 1.0 / (4.0 * PI)),

@@ -173,6 +173,7 @@ impl SearchIndex {
 /// `value`, given it at every `STRIDE²`-th `j` (`coarse(k) = value(k·STRIDE²)`) and every
 /// `STRIDE`-th (`fine(k) = value(k·STRIDE)`): three short scans, the first from the block of
 /// `from` (a draw's answer lies within its box, so the scans skip the entries before it).
+#[inline(always)]
 fn first_above(
     target: f64,
     from: usize,
@@ -418,6 +419,7 @@ impl GuidedTable {
     }
 
     /// The box `[α0, α1] × [β0, β1]` with its integral (`None` if it is empty).
+    #[inline(always)]
     pub fn guided_box(&self, alpha: [f64; 2], beta: [f64; 2]) -> Option<GuidedBox> {
         let alpha_cells = alpha.map(|a| self.alpha.locate(a));
         let beta_cells = beta.map(|b| self.beta.locate(b));
@@ -436,6 +438,7 @@ impl GuidedTable {
     }
 
     /// Draws `(α, β)` in the box with density `T / Z`: the coordinates, and `T` there.
+    #[inline(always)]
     pub fn sample(&self, b: &GuidedBox, u: [f64; 2]) -> Option<(f64, f64, f64)> {
         let (alpha, c) = self.sample_alpha(b, u[0])?;
         let (beta, r) = self.sample_beta(c, b, u[1])?;
@@ -445,6 +448,7 @@ impl GuidedTable {
     /// Inverts the marginal CDF in `α` over the box's `β` range (piecewise linear, with a
     /// node at each column edge): a search along the summed-area table's rows at `β0` and
     /// `β1` ([`first_above`]), then a linear step within the column. The coordinate and its column.
+    #[inline(always)]
     fn sample_alpha(&self, b: &GuidedBox, u: f64) -> Option<(f64, usize)> {
         let m = self.alpha.cells() + 1;
         let [(r0, g0), (r1, g1)] = b.beta_cells;
@@ -484,6 +488,7 @@ impl GuidedTable {
     }
 
     /// Inverts column `c`'s CDF in `β` within `[β0, β1]`: the coordinate and its row.
+    #[inline(always)]
     fn sample_beta(&self, c: usize, b: &GuidedBox, u: f64) -> Option<(f64, usize)> {
         let (beta, [(r0, g0), (r1, g1)]) = (b.beta, b.beta_cells);
         let mb = self.beta.cells() + 1;

@@ -160,6 +160,7 @@ impl SkySampler {
     }
 
     /// [`Self::context`] into a reused buffer.
+    #[inline(always)]
     pub fn fill_context(&self, scene: &impl LightSet, x: Vec3, ctx: &mut SkyContext) {
         let windows = scene.windows();
         ctx.x = x;
@@ -233,6 +234,7 @@ impl SkySampler {
     /// number), the window by `u_technique`, the direction by `u`; `None` when the drawn share
     /// draws nothing (a guided draw outside its window, an edge-on window) or the scene has no
     /// environment.
+    #[inline(always)]
     pub fn sample(
         &self,
         scene: &impl LightSet,
@@ -252,6 +254,7 @@ impl SkySampler {
     /// Its pdf is the whole mixture's, whichever share drew it; one sample from each share,
     /// each weighted by its share (`alpha`, `1 − alpha`), estimates the same integral
     /// (`docs/method.md` §9.2, `Mixture::EachShare`).
+    #[inline(always)]
     pub fn sample_share(
         &self,
         scene: &impl LightSet,
@@ -305,6 +308,7 @@ impl SkySampler {
     }
 
     /// The mixture pdf `q(wi)`.
+    #[inline(always)]
     pub fn pdf(&self, scene: &impl LightSet, ctx: &SkyContext, wi: Vec3) -> f32 {
         let Some(env) = scene.environment() else {
             return 0.0;

@@ -197,6 +197,7 @@ impl Window {
 
     /// The box of the window's directions from `x` in `(α, β)` and the table's integral over
     /// it; `None` without a table, or for `x` not in front.
+    #[inline(always)]
     pub fn guided_box(&self, x: Vec3) -> Option<GuidedBox> {
         let table = self.guided.as_ref()?;
         let f = &self.frame;
@@ -217,6 +218,7 @@ impl Window {
     /// in the box but outside the window is no sample (`None`), so the density is that of the
     /// box restricted to the window (it integrates to the window's share of `Z`). A window that
     /// fills its box ([`Self::fills_box`]) skips the inside test: its support is the box.
+    #[inline(always)]
     pub fn sample_guided(&self, b: &GuidedBox, x: Vec3, u: Vec2) -> Option<(Vec3, f32)> {
         let table = self.guided.as_ref()?;
         let (alpha, beta, weight) = table.sample(b, [f64::from(u.x), f64::from(u.y)])?;

@@ -391,7 +391,8 @@ impl<'a> Integrator<'a> {
 
     /// The environment's radiance along `d` for a ray that left the scene, MIS-weighted against
     /// the environment's technique at the previous vertex `(x, bsdf_pdf)` (if any; a camera
-    /// ray sees it unweighted).
+    /// ray sees it unweighted). Always inlined, as `sky_direct` is.
+    #[inline(always)]
     fn environment_along(&self, d: Vec3, previous: Option<(Vec3, f32)>) -> Vec3 {
         let Some(env) = self.scene.environment() else {
             return Vec3::ZERO;
@@ -621,6 +622,9 @@ impl<'a> Integrator<'a> {
 
     /// The environment's contribution through the windows: one sample of the sky mixture,
     /// its shadow ray to infinity, weighted against BSDF sampling by the power heuristic.
+    /// Always inlined, like the area lights' steps: out of line, it and its shadow ray were
+    /// compiled for baseline x86-64, not for the renderer's instruction set.
+    #[inline(always)]
     fn sky_direct<T: Tracer>(
         &self,
         tracer: &T,
