@@ -310,6 +310,7 @@ impl ConvexPolygon {
     /// edge vectors: each is rounded relative to its own length, so the offset is good to a few
     /// ulps of its length even when the polygon and `origin` are far from the world origin
     /// (where an absolute point is only good to an ulp of its coordinates).
+    #[inline(always)]
     pub fn sample_uniform_offset(&self, origin: Vec3, u: Vec2) -> Vec3 {
         let (i, b) = self.pick_fan_point(u);
         let v = &self.vertices;
@@ -342,6 +343,7 @@ impl ConvexPolygon {
     /// there), with the inside test against the planes through `x` and each edge, allowing
     /// [`EDGE_SLACK`]: a direction [`Self::sample_direction`] drew near an edge must never be
     /// judged outside, or its sample would be weighted by a mixture pdf without its own term.
+    #[inline(always)]
     pub fn ray_through(&self, x: Vec3, wi: Vec3) -> Option<(f64, f64)> {
         let vertices = self.vertices();
         let (xd, w, n) = (x.as_dvec3(), wi.as_dvec3(), self.normal.as_dvec3());
@@ -460,6 +462,7 @@ fn area_centroid(vertices: &[Vec3], normal: Vec3) -> Vec3 {
 }
 
 /// A uniform point on a convex polygon: pick a fan triangle by area, reusing `u.x`.
+#[inline(always)]
 pub fn sample_polygon_area(vertices: &[Vec3], u: Vec2) -> Vec3 {
     let v0 = vertices[0];
     let fan_area = |w: &[Vec3]| (w[0] - v0).cross(w[1] - v0).length();
