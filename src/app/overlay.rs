@@ -115,32 +115,40 @@ mod tests {
 
     #[test]
     fn legend_names_what_windows_sample() {
-        let line = |r, areas, windows| legend_line(r, areas, windows);
         // Area-light portals: the thesis's table.
         assert_eq!(
-            line(Region::Antiantumbra, true, false),
+            legend_line(Region::Antiantumbra, true, false),
             "antiantumbra: portal"
         );
-        assert_eq!(line(Region::Antiumbra, true, false), "antiumbra: light");
-        assert_eq!(line(Region::Behind, true, false), "behind: light alone");
+        assert_eq!(
+            legend_line(Region::Antiumbra, true, false),
+            "antiumbra: light"
+        );
+        assert_eq!(
+            legend_line(Region::Behind, true, false),
+            "behind: light alone"
+        );
         // Windows: the environment within the window, counted as projection.
         assert_eq!(
-            line(Region::Antiantumbra, false, true),
+            legend_line(Region::Antiantumbra, false, true),
             "antiantumbra: projection"
         );
-        assert_eq!(line(Region::Behind, false, true), "behind: light alone");
+        assert_eq!(
+            legend_line(Region::Behind, false, true),
+            "behind: light alone"
+        );
         // Both kinds: the line says where they differ.
         assert_eq!(
-            line(Region::Antiantumbra, true, true),
+            legend_line(Region::Antiantumbra, true, true),
             "antiantumbra: portal; windows: projection"
         );
         assert_eq!(
-            line(Region::Antipenumbra, true, true),
+            legend_line(Region::Antipenumbra, true, true),
             "antipenumbra: projection"
         );
         // No portal at all: the area table, as before.
         assert_eq!(
-            line(Region::Antiantumbra, false, false),
+            legend_line(Region::Antiantumbra, false, false),
             "antiantumbra: portal"
         );
     }
