@@ -13,6 +13,7 @@ use crate::compare::{
     ImageSpec, ReferenceBudget, TimeToError, cached_reference, default_cache_dir, error_at_spp,
     render_reference, time_to_error,
 };
+use crate::isa::Isa;
 use crate::light::Strategy;
 use crate::render::integrator::{Integrator, RenderSettings};
 use crate::render::record::{RecordedRay, record_pass};
@@ -30,24 +31,14 @@ fn replay(
     budget: Duration,
     keep: impl Fn(&RecordedRay) -> bool + Sync,
 ) -> f64 {
-    let trace = |r: &RecordedRay| {
-        if r.closest {
-            bvh.raw_closest_t(r.origin, r.dir, r.tmin, r.tmax).min(1e30)
-        } else {
-            bvh.occluded(r.origin, r.dir, r.tmin, r.tmax) as u8 as f32
-        }
-    };
+    let isa = Isa::detect();
     let start = Instant::now();
     let mut count = 0usize;
     let mut sink = 0.0f32;
     while start.elapsed() < budget {
         let (n, s) = tiles
             .par_iter()
-            .map(|tile| {
-                tile.iter()
-                    .filter(|r| keep(r))
-                    .fold((0usize, 0.0f32), |(n, s), r| (n + 1, s + trace(r)))
-            })
+            .map(|tile| trace_tile_isa(isa, bvh, tile, &keep))
             .reduce(|| (0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1));
         count += n;
         sink += s;
@@ -55,6 +46,53 @@ fn replay(
     // Keep the traversal from being optimised away.
     std::hint::black_box(sink);
     count as f64 / start.elapsed().as_secs_f64()
+}
+
+/// [`trace_tile`] compiled for `isa` where this CPU runs it, as the renderer is
+/// (`render::render_tile_isa`): the raw side gets the same instructions as the renderer's.
+fn trace_tile_isa(
+    isa: Isa,
+    bvh: &Bvh,
+    tile: &[RecordedRay],
+    keep: &impl Fn(&RecordedRay) -> bool,
+) -> (usize, f32) {
+    #[cfg(target_arch = "x86_64")]
+    if isa == Isa::Avx2 && isa.available() {
+        // SAFETY: called only where the CPU has the variant's features, checked above.
+        #[allow(unsafe_code)]
+        return unsafe { trace_tile_avx2(bvh, tile, keep) };
+    }
+    trace_tile(bvh, tile, keep)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
+fn trace_tile_avx2(
+    bvh: &Bvh,
+    tile: &[RecordedRay],
+    keep: &impl Fn(&RecordedRay) -> bool,
+) -> (usize, f32) {
+    trace_tile(bvh, tile, keep)
+}
+
+/// The rays of one tile that `keep` selects, one at a time: their count, and a sum of their
+/// answers that the optimiser cannot drop.
+#[inline(always)]
+fn trace_tile(
+    bvh: &Bvh,
+    tile: &[RecordedRay],
+    keep: &impl Fn(&RecordedRay) -> bool,
+) -> (usize, f32) {
+    let (mut n, mut sum) = (0, 0.0);
+    for r in tile.iter().filter(|r| keep(r)) {
+        n += 1;
+        sum += if r.closest {
+            bvh.raw_closest_t(r.origin, r.dir, r.tmin, r.tmax).min(1e30)
+        } else {
+            bvh.occluded(r.origin, r.dir, r.tmin, r.tmax) as u8 as f32
+        };
+    }
+    (n, sum)
 }
 
 #[derive(Args, Debug, Clone)]

@@ -1015,16 +1015,16 @@ impl Bvh {
         self.triangles.len()
     }
 
-    /// The raw obvhs traversal with no shading work, for benchmarks: closest-hit distance.
+    /// The renderer's closest-hit traversal with no other work, for benchmarks: the distance
+    /// alone (no barycentrics, no cut-outs).
+    #[inline(always)]
     pub fn raw_closest_t(&self, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> f32 {
         let Some(bvh) = self.cwbvh.as_ref() else {
             return f32::INFINITY;
         };
-        let mut hit = RayHit::none();
-        bvh.ray_traverse(make_ray(origin, dir, tmin, tmax), &mut hit, |r, id| {
-            self.triangles[id].intersect(r)
-        });
-        hit.t
+        let ray = make_ray(origin, dir, tmin, tmax);
+        closest(bvh, self.isa, ray, |r, id| self.triangles[id].intersect(r))
+            .map_or(f32::INFINITY, |(_, t)| t)
     }
 }
 
