@@ -1,7 +1,7 @@
 //! The acceleration structure: an obvhs CWBVH over every triangle, with triangles reordered
 //! once into BVH order so traversal reads them sequentially.
 
-use glam::{UVec2, Vec2, Vec3, Vec3A};
+use glam::{Vec2, Vec3, Vec3A};
 use obvhs::{
     BvhBuildParams,
     bvh2::{Bvh2, reinsertion::ReinsertionOptimizer},
@@ -350,9 +350,66 @@ impl Lanes {
     }
 }
 
-/// The closest primitive along `ray` and its distance: obvhs's `CwBvh::ray_traverse`, through
-/// its `traverse!` macro here so that the traversal is compiled into (and inlined by) the
-/// renderer's CPU-feature variants (`render::render_tile`) instead of once for baseline x86-64.
+/// Entries of the single-ray traversal stack: one group per level of the deepest tree built
+/// (`MAX_CWBVH_DEPTH` levels below the root), a power of two so that masking the depth
+/// replaces the bounds check.
+const STACK: usize = MAX_CWBVH_DEPTH as usize + 1;
+const _: () = assert!(STACK.is_power_of_two());
+
+/// obvhs's CWBVH traversal (its `traverse!` macro) written out: the same nodes, and the same
+/// primitives, in the same order, so the same answers; but its state lives in a few registers
+/// (the macro's took about forty instructions per node). `primitive` tests one primitive (BVH
+/// order) along the ray, may shorten the ray (its `tmax` culls the nodes after), and says
+/// whether to stop. Whether a primitive stopped it.
+#[inline(always)]
+fn walk(
+    nodes: &[CwBvhNode],
+    isa: Isa,
+    ray: &mut Ray,
+    mut primitive: impl FnMut(&mut Ray, u32) -> bool,
+) -> bool {
+    let oct_inv4 = octant_inv4(ray.direction);
+    // Groups of children left to visit: the first child's index, and (as obvhs's
+    // `current_group.y`) their priority bits in the top byte, the node's `imask` in the low one.
+    let mut stack = [(0u32, 0u32); STACK];
+    let mut depth = 0usize;
+    let (mut child_base, mut bits) = (0u32, 0x8000_0000u32);
+    loop {
+        if bits & 0xff00_0000 == 0 {
+            let Some(top) = depth.checked_sub(1) else {
+                return false;
+            };
+            depth = top;
+            // Only groups with children left are pushed.
+            (child_base, bits) = stack[depth & (STACK - 1)];
+        }
+        let offset = 31 - bits.leading_zeros();
+        let slot = (offset - 24) ^ (oct_inv4 & 0xff);
+        let child = child_base + (bits & !(u32::MAX << slot)).count_ones();
+        bits &= !(1 << offset);
+        if bits & 0xff00_0000 != 0 {
+            // At most one group per level: `depth` stays below `STACK`.
+            stack[depth & (STACK - 1)] = (child_base, bits);
+            depth += 1;
+        }
+        let node = &nodes[child as usize];
+        let hits = node_hits(isa, node, ray, oct_inv4);
+        // The leaves' primitives first, highest bit first, as obvhs tests them.
+        let mut primitives = hits & 0x00ff_ffff;
+        while primitives != 0 {
+            let k = 31 - primitives.leading_zeros();
+            primitives &= !(1 << k);
+            if primitive(ray, node.primitive_base_idx + k) {
+                return true;
+            }
+        }
+        (child_base, bits) = (node.child_base_idx, (hits & 0xff00_0000) | node.imask as u32);
+    }
+}
+
+/// The closest primitive along `ray` and its distance: obvhs's `CwBvh::ray_traverse` through
+/// [`walk`], compiled into (and inlined by) the renderer's CPU-feature variants
+/// (`render::render_tile`) instead of once for baseline x86-64.
 #[inline(always)]
 fn closest(
     bvh: &CwBvh,
@@ -360,54 +417,33 @@ fn closest(
     ray: Ray,
     mut intersect: impl FnMut(&Ray, usize) -> f32,
 ) -> Option<(u32, f32)> {
-    let mut traverse_ray = ray;
-    let mut hit = RayHit::none();
-    let mut state = bvh.new_traversal(ray.direction);
-    let mut node;
-    obvhs::traverse!(
-        bvh,
-        node,
-        state,
-        node_hits(isa, node, &traverse_ray, state.oct_inv4),
-        {
-            let t = intersect(&traverse_ray, state.primitive_id as usize);
-            if t < traverse_ray.tmax {
-                hit.primitive_id = state.primitive_id;
-                hit.t = t;
-                traverse_ray.tmax = t;
-            }
+    // The ray's `tmax` becomes the closest hit's distance.
+    let (mut traverse_ray, mut found) = (ray, 0);
+    walk(&bvh.nodes, isa, &mut traverse_ray, |r, id| {
+        let t = intersect(r, id as usize);
+        if t < r.tmax {
+            (r.tmax, found) = (t, id);
         }
-    );
-    (hit.t < ray.tmax).then_some((hit.primitive_id, hit.t))
+        false
+    });
+    (traverse_ray.tmax < ray.tmax).then_some((found, traverse_ray.tmax))
 }
 
-/// A primitive that lies along `ray`, if any: obvhs's `CwBvh::ray_traverse_miss`, stopped at
-/// the first hit, for the same reason as [`closest`].
+/// A primitive that lies along `ray`, if any: obvhs's `CwBvh::ray_traverse_miss` through
+/// [`walk`], stopped at the first hit, for the same reason as [`closest`].
 #[inline(always)]
 fn any_hit(
     bvh: &CwBvh,
     isa: Isa,
-    ray: Ray,
+    mut ray: Ray,
     mut intersect: impl FnMut(&Ray, usize) -> f32,
 ) -> Option<u32> {
-    let mut state = bvh.new_traversal(ray.direction);
-    let mut node;
-    let mut hit = None;
-    'outer: {
-        obvhs::traverse!(
-            bvh,
-            node,
-            state,
-            node_hits(isa, node, &ray, state.oct_inv4),
-            {
-                if intersect(&ray, state.primitive_id as usize) < ray.tmax {
-                    hit = Some(state.primitive_id);
-                    break 'outer;
-                }
-            }
-        );
-    }
-    hit
+    let mut found = 0;
+    walk(&bvh.nodes, isa, &mut ray, |r, id| {
+        found = id;
+        intersect(r, id as usize) < r.tmax
+    })
+    .then_some(found)
 }
 
 /// The two ray queries a renderer makes. The renderer traces through [`Bvh`]; the benchmark
@@ -1147,6 +1183,79 @@ mod tests {
             together > 2000 && hits > rays_traced / 2,
             "{together}, {hits} of {rays_traced}"
         );
+    }
+
+    /// The hand-written traversal ([`walk`]) answers as obvhs's own (`ray_traverse`, and its
+    /// `traverse!` stopped at the first hit), bit for bit and with the same occluder found
+    /// first, with the AVX2 node test and the baseline one: random triangles, short rays and
+    /// long ones, axis-parallel ones too. Not vacuous: many rays hit, many miss.
+    #[test]
+    fn walk_answers_as_obvhs() {
+        // obvhs's `traverse!` names `UVec2` unqualified.
+        use glam::UVec2;
+        let mut rng = Rng::new(13, 0);
+        let mut point = |scale: f32| {
+            let u = rng.uniform2();
+            let w = rng.uniform();
+            (Vec3::new(u.x, u.y, w) * 2.0 - 1.0) * scale
+        };
+        let triangles: Vec<[Vec3; 3]> = (0..3000)
+            .map(|_| {
+                let c = point(4.0);
+                [c + point(0.4), c + point(0.4), c + point(0.4)]
+            })
+            .collect();
+        let rays: Vec<(Vec3, Vec3, f32)> = (0..4000)
+            .filter_map(|i| {
+                // Most toward the triangles, some axis-parallel.
+                let origin = point(6.0);
+                let mut dir = point(3.0) - origin;
+                match i % 7 {
+                    0 => dir.x = 0.0,
+                    1 => dir = Vec3::new(0.0, 0.0, dir.z),
+                    _ => {}
+                }
+                let tmax = [0.5, 4.0, f32::INFINITY][i % 3];
+                (dir != Vec3::ZERO).then(|| (origin, dir.normalize(), tmax))
+            })
+            .collect();
+        let mut bvh = Bvh::build(&triangles).unwrap();
+        let (mut hits, mut traced) = (0, 0);
+        for isa in Isa::ALL.into_iter().filter(|isa| isa.available()) {
+            bvh.isa = isa;
+            let cwbvh = bvh.cwbvh.as_ref().unwrap();
+            for (i, &(origin, dir, tmax)) in rays.iter().enumerate() {
+                let ray = make_ray(origin, dir, 0.0, tmax);
+                let intersect = |r: &Ray, id: usize| bvh.triangles[id].intersect(r);
+                let mut expected = RayHit::none();
+                let closest = cwbvh
+                    .ray_traverse(ray, &mut expected, intersect)
+                    .then_some((expected.primitive_id, expected.t.to_bits()));
+                let found = super::closest(cwbvh, isa, ray, intersect);
+                assert_eq!(found.map(|(id, t)| (id, t.to_bits())), closest, "ray {i}");
+                let mut state = cwbvh.new_traversal(ray.direction);
+                let mut node;
+                let mut first = None;
+                'outer: {
+                    obvhs::traverse!(
+                        cwbvh,
+                        node,
+                        state,
+                        node.intersect_ray(&ray, state.oct_inv4),
+                        {
+                            if intersect(&ray, state.primitive_id as usize) < ray.tmax {
+                                first = Some(state.primitive_id);
+                                break 'outer;
+                            }
+                        }
+                    );
+                }
+                assert_eq!(bvh.occluder(origin, dir, 0.0, tmax, NO_OCCLUDER), first, "ray {i}");
+                hits += closest.is_some() as u32;
+                traced += 1;
+            }
+        }
+        assert!(hits > traced / 5 && hits < traced * 4 / 5, "{hits} of {traced}");
     }
 
     /// The AVX2 node test gives obvhs's mask for every node of a tree and rays in every octant,
