@@ -151,7 +151,11 @@ impl Avx2Test {
     #[inline]
     fn hits_avx2(&self, node: &CwBvhNode, tmax: f32) -> u32 {
         let hit = child_hits_avx2(node, self.origin, self.inv_direction, &self.negative, tmax);
-        hit_mask_avx2(node, std::arch::x86_64::_mm256_castps_si256(hit), self.octant)
+        hit_mask_avx2(
+            node,
+            std::arch::x86_64::_mm256_castps_si256(hit),
+            self.octant,
+        )
     }
 }
 
@@ -257,9 +261,7 @@ fn hit_mask_avx2(
     // SAFETY: an 8-byte load from an 8-byte array.
     #[allow(unsafe_code)]
     let meta = unsafe {
-        _mm256_cvtepu8_epi32(_mm_loadl_epi64(
-            node.child_meta.as_ptr() as *const __m128i
-        ))
+        _mm256_cvtepu8_epi32(_mm_loadl_epi64(node.child_meta.as_ptr() as *const __m128i))
     };
     // Inner children's meta is 24 + slot (bits 3 and 4 set), a leaf's offset is below 24.
     let inner_bits = _mm256_set1_epi32(0b1_1000);
@@ -517,7 +519,10 @@ fn walk(
                 return true;
             }
         }
-        (child_base, bits) = (node.child_base_idx, (hits & 0xff00_0000) | node.imask as u32);
+        (child_base, bits) = (
+            node.child_base_idx,
+            (hits & 0xff00_0000) | node.imask as u32,
+        );
     }
 }
 
@@ -540,7 +545,10 @@ fn walk_isa(
             walk(&bvh.nodes, &test, oct_inv4, ray, &mut primitive)
         }
         _ => {
-            let test = ObvhsTest { ray: *ray, oct_inv4 };
+            let test = ObvhsTest {
+                ray: *ray,
+                oct_inv4,
+            };
             walk(&bvh.nodes, &test, oct_inv4, ray, &mut primitive)
         }
     }
@@ -1375,7 +1383,10 @@ mod tests {
             tested += 1;
         }
         // Not vacuous: about half the rays hit.
-        assert!(hits > tested / 4 && hits < tested * 3 / 4, "{hits} of {tested}");
+        assert!(
+            hits > tested / 4 && hits < tested * 3 / 4,
+            "{hits} of {tested}"
+        );
     }
 
     /// The hand-written traversal ([`walk`]) answers as obvhs's own (`ray_traverse`, and its
@@ -1443,12 +1454,19 @@ mod tests {
                         }
                     );
                 }
-                assert_eq!(bvh.occluder(origin, dir, 0.0, tmax, NO_OCCLUDER), first, "ray {i}");
+                assert_eq!(
+                    bvh.occluder(origin, dir, 0.0, tmax, NO_OCCLUDER),
+                    first,
+                    "ray {i}"
+                );
                 hits += closest.is_some() as u32;
                 traced += 1;
             }
         }
-        assert!(hits > traced / 5 && hits < traced * 4 / 5, "{hits} of {traced}");
+        assert!(
+            hits > traced / 5 && hits < traced * 4 / 5,
+            "{hits} of {traced}"
+        );
     }
 
     /// The AVX2 node test gives obvhs's mask for every node of a tree and rays in every octant,
