@@ -64,8 +64,14 @@ pub fn exr_bytes(width: u32, height: u32, pixels: &[Vec3]) -> Result<Vec<u8>, St
         let c = pixels[p.y() * w + p.x()];
         (c.x, c.y, c.z)
     });
+    // Blocks in increasing order: the writer compresses them in parallel and would otherwise
+    // store them as they finish, so one image could give files that differ byte for byte.
+    let encoding = Encoding {
+        line_order: LineOrder::Increasing,
+        ..Encoding::default()
+    };
     let mut bytes = Cursor::new(Vec::new());
-    Image::from_channels((w, h), channels)
+    Image::from_encoded_channels((w, h), encoding, channels)
         .write()
         .to_buffered(&mut bytes)
         .map_err(|e| e.to_string())?;
@@ -148,5 +154,19 @@ mod tests {
         assert_eq!(read_exr(&path).unwrap(), (3, 2, pixels));
         assert!(exr_bytes(3, 3, &[Vec3::ZERO]).is_err());
         fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// 128 blocks, compressed in parallel: the same pixels must give the same file (with the
+    /// writer's default, unspecified block order, this failed).
+    #[test]
+    fn exr_files_are_reproducible() {
+        let (w, h) = (1024, 512);
+        let pixels: Vec<Vec3> = (0..w * h)
+            .map(|i| Vec3::new(i as f32, (i % 7) as f32, (i * 31 % 1000) as f32 / 3.0))
+            .collect();
+        let first = exr_bytes(w, h, &pixels).unwrap();
+        for _ in 0..16 {
+            assert_eq!(exr_bytes(w, h, &pixels).unwrap(), first);
+        }
     }
 }
