@@ -7,7 +7,7 @@ use obvhs::{
     bvh2::{Bvh2, reinsertion::ReinsertionOptimizer},
     cwbvh::{CwBvh, bvh2_to_cwbvh::bvh2_to_cwbvh, node::CwBvhNode},
     ploc::PlocBuilder,
-    ray::{Ray, RayHit},
+    ray::Ray,
     triangle::Triangle,
 };
 use std::cell::Cell;
