@@ -172,9 +172,20 @@ impl SkySampler {
         if !ctx.has_windows {
             return;
         }
-        let in_front = windows.iter().enumerate().filter(|(_, w)| w.in_front(x));
-        let several = windows.iter().filter(|w| w.in_front(x)).count() > 1;
-        for (j, window) in in_front.take(MAX_TERMS) {
+        // The windows x is in front of (the first `MAX_TERMS`), and how many there are, in
+        // one pass: plain loops, each test once.
+        let mut in_front: ArrayVec<usize, MAX_TERMS> = ArrayVec::new();
+        let mut count = 0;
+        for (j, window) in windows.iter().enumerate() {
+            if window.in_front(x) {
+                count += 1;
+                // Past `MAX_TERMS` windows only the count matters.
+                let _ = in_front.try_push(j);
+            }
+        }
+        let several = count > 1;
+        for j in in_front {
+            let window = &windows[j];
             ctx.uses_windows = true;
             ctx.region = Region::Antiantumbra;
             let Some(technique) = SkyTechnique::of(self.strategy, window.is_guided()) else {
@@ -224,9 +235,15 @@ impl SkySampler {
                 ctx.terms.pop();
             }
         }
-        let total: f32 = ctx.terms.iter().map(|t| t.weight).sum();
-        for term in ctx.terms.iter_mut() {
-            term.weight /= total;
+        // A single term keeps its weight 1 (what dividing by its total gives).
+        if several {
+            let mut total = 0.0;
+            for term in &ctx.terms {
+                total += term.weight;
+            }
+            for term in ctx.terms.iter_mut() {
+                term.weight /= total;
+            }
         }
     }
 
