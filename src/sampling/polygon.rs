@@ -365,7 +365,9 @@ impl ConvexPolygon {
         for v in vertices {
             let b = v.as_dvec3();
             let m = (a - xd).cross(b - a);
-            if !(height.signum() * m.dot(w) * t >= -slack * m.length()) {
+            // False for a NaN too, as `all` was.
+            let inside = height.signum() * m.dot(w) * t >= -slack * m.length();
+            if !inside {
                 return None;
             }
             a = b;
