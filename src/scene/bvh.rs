@@ -358,7 +358,7 @@ impl Lanes {
     }
 
     /// In byte `j`: the lanes of `active` whose rays (closest hits so far at `tmax`) enter
-    /// the box of child `j` of `node`. Each lane computes [`child_hits_avx2`]'s IEEE operations for that
+    /// child `j` of `node`. Each lane computes [`child_hits_avx2`]'s IEEE operations for that
     /// child, in the same order, so its bit is that test's, bit for bit.
     #[target_feature(enable = "avx2")]
     #[inline]
@@ -393,10 +393,10 @@ impl Lanes {
         let (near_z, far_z) = planes(&node.child_min_z, &node.child_max_z, self.negative[2]);
         let epsilon = _mm256_set1_ps(NODE_EPSILON);
         let mut lanes = 0u64;
-        // Every child, empty ones too (their lanes count for nothing: an empty child has no
-        // bits in obvhs's mask): a loop of fixed length, unrolled, costs less than one that
-        // skips them.
         for j in 0..8 {
+            if node.child_meta[j] == 0 {
+                continue;
+            }
             // Child j's plane in every lane, then the slab distance of each lane's ray.
             let child = _mm256_set1_epi32(j);
             let slab = |q: __m256, inv: __m256, o: __m256| {
