@@ -387,7 +387,7 @@ impl Lanes {
                 continue;
             }
             // Child j's plane in every lane, then the slab distance of each lane's ray.
-            let child = _mm256_set1_epi32(j);
+            let child = _mm256_set1_epi32(j as i32);
             let slab = |q: __m256, inv: __m256, o: __m256| {
                 let q = _mm256_permutevar8x32_ps(q, child);
                 _mm256_add_ps(_mm256_mul_ps(q, inv), o)
