@@ -172,20 +172,9 @@ impl SkySampler {
         if !ctx.has_windows {
             return;
         }
-        // The windows x is in front of (the first `MAX_TERMS`), and how many there are, in
-        // one pass: plain loops, each test once.
-        let mut in_front: ArrayVec<usize, MAX_TERMS> = ArrayVec::new();
-        let mut count = 0;
-        for (j, window) in windows.iter().enumerate() {
-            if window.in_front(x) {
-                count += 1;
-                // Past `MAX_TERMS` windows only the count matters.
-                let _ = in_front.try_push(j);
-            }
-        }
-        let several = count > 1;
-        for j in in_front {
-            let window = &windows[j];
+        let in_front = windows.iter().enumerate().filter(|(_, w)| w.in_front(x));
+        let several = windows.iter().filter(|w| w.in_front(x)).count() > 1;
+        for (j, window) in in_front.take(MAX_TERMS) {
             ctx.uses_windows = true;
             ctx.region = Region::Antiantumbra;
             let Some(technique) = SkyTechnique::of(self.strategy, window.is_guided()) else {
@@ -235,15 +224,9 @@ impl SkySampler {
                 ctx.terms.pop();
             }
         }
-        // A single term keeps its weight 1 (what dividing by its total gives).
-        if several {
-            let mut total = 0.0;
-            for term in &ctx.terms {
-                total += term.weight;
-            }
-            for term in ctx.terms.iter_mut() {
-                term.weight /= total;
-            }
+        let total: f32 = ctx.terms.iter().map(|t| t.weight).sum();
+        for term in ctx.terms.iter_mut() {
+            term.weight /= total;
         }
     }
 
@@ -299,17 +282,18 @@ impl SkySampler {
         // One pixel lookup gives the radiance and the environment's density.
         let (le, p_env) = env.radiance_pdf(wi);
         let pdf = if ctx.uses_windows {
-            // Plain loops over the terms (here and in `pdf`): as an iterator's `sum` the loop
-            // was left out of line, compiled without the renderer's instruction-set features.
-            let mut windows = 0.0;
-            for t in &ctx.terms {
-                let p = if Some(t.window) == drawn {
-                    technique_pdf
-                } else {
-                    window_term_pdf(scene, x, t, p_env, wi)
-                };
-                windows += t.weight * p;
-            }
+            let windows: f32 = ctx
+                .terms
+                .iter()
+                .map(|t| {
+                    let p = if Some(t.window) == drawn {
+                        technique_pdf
+                    } else {
+                        window_term_pdf(scene, x, t, p_env, wi)
+                    };
+                    t.weight * p
+                })
+                .sum();
             ctx.alpha * p_env + (1.0 - ctx.alpha) * windows
         } else {
             technique_pdf
@@ -333,10 +317,11 @@ impl SkySampler {
         if !ctx.uses_windows {
             return p_env;
         }
-        let mut windows = 0.0;
-        for t in &ctx.terms {
-            windows += t.weight * window_term_pdf(scene, ctx.x, t, p_env, wi);
-        }
+        let windows: f32 = ctx
+            .terms
+            .iter()
+            .map(|t| t.weight * window_term_pdf(scene, ctx.x, t, p_env, wi))
+            .sum();
         ctx.alpha * p_env + (1.0 - ctx.alpha) * windows
     }
 }
@@ -350,12 +335,13 @@ pub fn window_term_pdf(
     wi: Vec3,
 ) -> f32 {
     let window: &Window = &scene.windows()[term.window];
-    // Matches rather than `map_or`, whose closures were left out of line.
-    match (term.technique, &term.spherical, &term.guided) {
-        (SkyTechnique::Environment, _, _) => p_env,
-        (SkyTechnique::WindowArea, _, _) => window.area_pdf(x, wi),
-        (SkyTechnique::SolidAngle, Some(q), _) => q.pdf(wi),
-        (SkyTechnique::Guided, _, Some(b)) => window.guided_pdf(b, x, wi),
-        (SkyTechnique::SolidAngle | SkyTechnique::Guided, _, _) => 0.0,
+    match term.technique {
+        SkyTechnique::Environment => p_env,
+        SkyTechnique::WindowArea => window.area_pdf(x, wi),
+        SkyTechnique::SolidAngle => term.spherical.as_ref().map_or(0.0, |q| q.pdf(wi)),
+        SkyTechnique::Guided => term
+            .guided
+            .as_ref()
+            .map_or(0.0, |b| window.guided_pdf(b, x, wi)),
     }
 }

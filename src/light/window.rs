@@ -186,7 +186,6 @@ impl Window {
 
     /// If the ray `x + t·wi` (`t > 0`) passes through the window: `t` and the cosine with its
     /// normal ([`ConvexPolygon::ray_through`]).
-    #[inline(always)]
     pub fn through(&self, x: Vec3, wi: Vec3) -> Option<(f64, f64)> {
         self.polygon.ray_through(x, wi)
     }
@@ -235,7 +234,6 @@ impl Window {
 
     /// The solid-angle pdf of [`Self::sample_guided`] for `wi`: 0 unless it passes through the
     /// window (through the box, for a window that fills it).
-    #[inline(always)]
     pub fn guided_pdf(&self, b: &GuidedBox, x: Vec3, wi: Vec3) -> f32 {
         let Some(table) = self.guided.as_ref() else {
             return 0.0;
@@ -323,7 +321,6 @@ impl WindowFrame {
 
     /// Whether the ray from `x` with tangents `(a, b)` (`a = ω·s / ω·out`, likewise `b`) meets
     /// the window's plane inside the bounding box, to [`BOX_SLACK`]: the inside test of a box.
-    #[inline(always)]
     fn box_holds(&self, x: Vec3, a: f64, b: f64) -> bool {
         let rel = x.as_dvec3() - self.centre;
         let h = -rel.dot(self.out);

@@ -359,20 +359,12 @@ impl ConvexPolygon {
         // With counter-clockwise vertices around n, `(a − x) × (b − a)` has `sign(height) · w`
         // on its positive side for w through the polygon; `t · m̂ · w` is the hit's distance to
         // the plane through x and the edge.
-        // A plain loop over the edges: `all` over the cyclic pairs was left out of line,
-        // compiled without the renderer's instruction-set features.
-        let mut a = vertices.last()?.as_dvec3();
-        for v in vertices {
-            let b = v.as_dvec3();
+        let inside = super::cyclic_pairs(vertices).all(|(a, b)| {
+            let (a, b) = (a.as_dvec3(), b.as_dvec3());
             let m = (a - xd).cross(b - a);
-            // False for a NaN too, as `all` was.
-            let inside = height.signum() * m.dot(w) * t >= -slack * m.length();
-            if !inside {
-                return None;
-            }
-            a = b;
-        }
-        Some((t, cos))
+            height.signum() * m.dot(w) * t >= -slack * m.length()
+        });
+        inside.then_some((t, cos))
     }
 
     /// The fan triangle `(v_0, v_{i+1}, v_{i+2})` for `u.x` and barycentrics in it.
