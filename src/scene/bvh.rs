@@ -1,13 +1,13 @@
 //! The acceleration structure: an obvhs CWBVH over every triangle, with triangles reordered
 //! once into BVH order so traversal reads them sequentially.
 
-use glam::{Vec2, Vec3, Vec3A};
+use glam::{UVec2, Vec2, Vec3, Vec3A};
 use obvhs::{
     BvhBuildParams,
     bvh2::{Bvh2, reinsertion::ReinsertionOptimizer},
     cwbvh::{CwBvh, bvh2_to_cwbvh::bvh2_to_cwbvh, node::CwBvhNode},
     ploc::PlocBuilder,
-    ray::Ray,
+    ray::{Ray, RayHit},
     triangle::Triangle,
 };
 use std::cell::Cell;
@@ -84,108 +84,50 @@ fn make_ray(origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> Ray {
 /// obvhs's lower bound on a child's entry distance (`cwbvh::node::EPSILON`, crate-private).
 const NODE_EPSILON: f32 = 0.0001;
 
-/// A node test for [`walk`]: the children of a node that a ray enters before `tmax`, in
-/// obvhs's hit mask (`CwBvhNode::intersect_ray`'s: the traversal priority bits of inner
-/// children in the top byte, the primitives of leaves in the low 24 bits).
-trait NodeTest {
-    fn hits(&self, node: &CwBvhNode, tmax: f32) -> u32;
-}
-
-/// obvhs's own node test (SSE, four children at a time).
-struct ObvhsTest {
-    ray: Ray,
-    oct_inv4: u32,
-}
-
-impl NodeTest for ObvhsTest {
-    #[inline(always)]
-    fn hits(&self, node: &CwBvhNode, tmax: f32) -> u32 {
-        node.intersect_ray(&Ray { tmax, ..self.ray }, self.oct_inv4)
+/// The children of `node` that `ray` enters, as obvhs's traversal wants them: obvhs's own test
+/// (`CwBvhNode::intersect_ray`, SSE, four children at a time) or, where the CPU has AVX2,
+/// [`node_hits_avx2`], which gives the same mask.
+#[inline(always)]
+#[allow(unsafe_code)]
+fn node_hits(isa: Isa, node: &CwBvhNode, ray: &Ray, oct_inv4: u32) -> u32 {
+    match isa {
+        // SAFETY: a BVH's `isa` is `Isa::detect()`, which is `Avx2` only where the CPU has it.
+        #[cfg(target_arch = "x86_64")]
+        Isa::Avx2 => unsafe { node_hits_avx2(node, ray, oct_inv4) },
+        _ => node.intersect_ray(ray, oct_inv4),
     }
 }
 
-/// A ray as the AVX2 node test ([`Avx2Test::hits`]) reads it, prepared once per ray.
-#[cfg(target_arch = "x86_64")]
-#[derive(Clone, Copy)]
-struct Avx2Test {
-    origin: Vec3A,
-    inv_direction: Vec3A,
-    /// Per axis, every lane set where the ray goes toward negative values (`d < 0.0`, as
-    /// obvhs tests it): there a child's near plane is its max.
-    negative: [std::arch::x86_64::__m256; 3],
-    /// The octant's byte of `oct_inv4`, in every lane.
-    octant: std::arch::x86_64::__m256i,
-}
-
-#[cfg(target_arch = "x86_64")]
-impl Avx2Test {
-    #[target_feature(enable = "avx2")]
-    #[inline]
-    fn new(ray: &Ray, oct_inv4: u32) -> Self {
-        use std::arch::x86_64::*;
-        Avx2Test {
-            origin: ray.origin,
-            inv_direction: ray.inv_direction,
-            negative: negative_masks(ray.direction),
-            octant: _mm256_set1_epi32((oct_inv4 & 0xff) as i32),
-        }
-    }
-
-    /// obvhs's `CwBvhNode::intersect_ray` (its SSE `intersect_ray_simd`) in AVX2: all eight
-    /// children in one register ([`child_hits_avx2`]), and their bits of the mask computed in
-    /// their lanes ([`hit_mask_avx2`]). The same mask, bit for bit
-    /// (`avx2_node_test_agrees_with_obvhs`). Node tests were a fifth of a light sample's
-    /// instructions in fig8b; this form took 8% of that sample's instructions away.
-    #[target_feature(enable = "avx2")]
-    #[inline]
-    fn hits_avx2(&self, node: &CwBvhNode, tmax: f32) -> u32 {
-        let hit = child_hits_avx2(node, self.origin, self.inv_direction, &self.negative, tmax);
-        hit_mask_avx2(
-            node,
-            std::arch::x86_64::_mm256_castps_si256(hit),
-            self.octant,
-        )
-    }
-}
-
-#[cfg(target_arch = "x86_64")]
-impl NodeTest for Avx2Test {
-    #[inline(always)]
-    #[allow(unsafe_code)]
-    fn hits(&self, node: &CwBvhNode, tmax: f32) -> u32 {
-        // SAFETY: an `Avx2Test` is only made (`Avx2Test::new`) where the CPU has AVX2.
-        unsafe { self.hits_avx2(node, tmax) }
-    }
-}
-
-/// Per axis, every lane set where `dir` goes toward negative values (`d < 0.0`).
+/// obvhs's `CwBvhNode::intersect_ray` (its SSE `intersect_ray_simd`) in AVX2: all eight
+/// children in one register, their byte-quantised bounds widened by two instructions instead of
+/// 48 scalar conversions. The same IEEE operations in the same order (multiply, then add, never
+/// fused; `max`/`min` with the same operand order), so the same mask, bit for bit
+/// (`avx2_node_test_agrees_with_obvhs`). Node tests were a fifth of a light sample's
+/// instructions in fig8b; this form takes 8% of that sample's instructions away.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 #[inline]
-fn negative_masks(dir: Vec3A) -> [std::arch::x86_64::__m256; 3] {
-    use std::arch::x86_64::*;
-    [dir.x, dir.y, dir.z].map(|d| _mm256_castsi256_ps(_mm256_set1_epi32(-((d < 0.0) as i32))))
+fn node_hits_avx2(node: &CwBvhNode, ray: &Ray, oct_inv4: u32) -> u32 {
+    let mut hit = child_hits_avx2(node, ray, ray.tmax);
+    let (child_bits8, bit_index8) = node.get_child_and_index_bits(oct_inv4);
+    let mut mask = 0;
+    while hit != 0 {
+        let j = hit.trailing_zeros() * 8;
+        hit &= hit - 1;
+        mask |= ((child_bits8 >> j) as u32 & 0xff) << ((bit_index8 >> j) as u32 & 0xff);
+    }
+    mask
 }
 
-/// Every lane set where the ray from `origin` (with `inv_direction`, and the `negative` masks
-/// of its direction), up to `tmax`, enters the box of that child of `node`: obvhs's slab test
-/// with the same IEEE operations in the same order (multiply, then add, never fused;
-/// `max`/`min` with the same operand order), its byte-quantised bounds widened by two
-/// instructions instead of scalar conversions, each child's near and far planes chosen by
-/// blends instead of branches.
+/// Bit `j` set where `ray`, up to `tmax`, enters the box of child `j` of `node` (the slab test
+/// of [`node_hits_avx2`], before it maps children to obvhs's hit mask).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 #[inline]
-fn child_hits_avx2(
-    node: &CwBvhNode,
-    origin: Vec3A,
-    inv_direction: Vec3A,
-    negative: &[std::arch::x86_64::__m256; 3],
-    tmax: f32,
-) -> std::arch::x86_64::__m256 {
+fn child_hits_avx2(node: &CwBvhNode, ray: &Ray, tmax: f32) -> u32 {
     use std::arch::x86_64::*;
-    let dir_inv = node.compute_extent() * inv_direction;
-    let origin = (Vec3A::from(node.p) - origin) * inv_direction;
+    let dir_inv = node.compute_extent() * ray.inv_direction;
+    let origin = (Vec3A::from(node.p) - ray.origin) * ray.inv_direction;
     // SAFETY: an 8-byte load from an 8-byte array.
     #[allow(unsafe_code)]
     let bytes = |v: &[u8; 8]| unsafe {
@@ -193,34 +135,34 @@ fn child_hits_avx2(
             v.as_ptr() as *const __m128i
         )))
     };
-    let slab = |lo: &[u8; 8], hi: &[u8; 8], negative: __m256, inv: f32, o: f32| {
+    let slab = |lo: &[u8; 8], hi: &[u8; 8], negative: bool, inv: f32, o: f32| {
         let (lo, hi) = (bytes(lo), bytes(hi));
-        let near = _mm256_blendv_ps(lo, hi, negative);
-        let far = _mm256_blendv_ps(hi, lo, negative);
+        let (near, far) = if negative { (hi, lo) } else { (lo, hi) };
         let (inv, o) = (_mm256_set1_ps(inv), _mm256_set1_ps(o));
         (
             _mm256_add_ps(_mm256_mul_ps(near, inv), o),
             _mm256_add_ps(_mm256_mul_ps(far, inv), o),
         )
     };
+    let d = ray.direction;
     let (tmin_x, tmax_x) = slab(
         &node.child_min_x,
         &node.child_max_x,
-        negative[0],
+        d.x < 0.0,
         dir_inv.x,
         origin.x,
     );
     let (tmin_y, tmax_y) = slab(
         &node.child_min_y,
         &node.child_max_y,
-        negative[1],
+        d.y < 0.0,
         dir_inv.y,
         origin.y,
     );
     let (tmin_z, tmax_z) = slab(
         &node.child_min_z,
         &node.child_max_z,
-        negative[2],
+        d.z < 0.0,
         dir_inv.z,
         origin.z,
     );
@@ -230,63 +172,16 @@ fn child_hits_avx2(
         _mm256_min_ps(tmax_x, _mm256_min_ps(tmax_y, tmax_z)),
         _mm256_set1_ps(tmax),
     );
-    _mm256_cmp_ps::<_CMP_LE_OQ>(tmin, tmax)
-}
-
-/// obvhs's hit mask from the children entered (every lane set in `hit`): each child's byte of
-/// `CwBvhNode::get_child_and_index_bits` computed in its lane (the leaf's primitives in unary,
-/// or 1 for an inner child; shifted by the primitive offset, or by 24 plus the child's slot
-/// XOR the `octant`), then ORed across lanes. Branch-free: the scalar form took a loop turn
-/// per child entered.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-#[inline]
-fn hit_mask_avx2(
-    node: &CwBvhNode,
-    hit: std::arch::x86_64::__m256i,
-    octant: std::arch::x86_64::__m256i,
-) -> u32 {
-    use std::arch::x86_64::*;
-    // SAFETY: an 8-byte load from an 8-byte array.
-    #[allow(unsafe_code)]
-    let meta = unsafe {
-        _mm256_cvtepu8_epi32(_mm_loadl_epi64(node.child_meta.as_ptr() as *const __m128i))
-    };
-    // Inner children's meta is 24 + slot (bits 3 and 4 set), a leaf's offset is below 24.
-    let inner_bits = _mm256_set1_epi32(0b1_1000);
-    let inner = _mm256_cmpeq_epi32(_mm256_and_si256(meta, inner_bits), inner_bits);
-    let index = _mm256_and_si256(
-        _mm256_xor_si256(meta, _mm256_and_si256(inner, octant)),
-        _mm256_set1_epi32(0b1_1111),
-    );
-    let bits = _mm256_and_si256(_mm256_sllv_epi32(_mm256_srli_epi32::<5>(meta), index), hit);
-    let bits = _mm_or_si128(
-        _mm256_castsi256_si128(bits),
-        _mm256_extracti128_si256::<1>(bits),
-    );
-    let bits = _mm_or_si128(bits, _mm_shuffle_epi32::<0b01_00_11_10>(bits));
-    let bits = _mm_or_si128(bits, _mm_shuffle_epi32::<0b10_11_00_01>(bits));
-    _mm_cvtsi128_si32(bits) as u32
+    _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(tmin, tmax)) as u32
 }
 
 /// obvhs's `ray_get_octant_inv4` (crate-private): which of the eight orders the traversal
-/// visits a node's children in, from the direction's signs (`d < 0.0`, as obvhs tests them),
-/// looked up by their sign mask.
+/// visits a node's children in, from the direction's signs.
 #[inline(always)]
 fn octant_inv4(dir: Vec3A) -> u32 {
-    const BY_SIGNS: [u32; 8] = {
-        let mut table = [0; 8];
-        let mut negative = 0;
-        while negative < 8 {
-            let positive = !negative;
-            table[negative] = ((positive & 1) * 4 + (positive >> 1 & 1) * 2 + (positive >> 2 & 1))
-                as u32
-                * 0x0101_0101;
-            negative += 1;
-        }
-        table
-    };
-    BY_SIGNS[dir.cmplt(Vec3A::ZERO).bitmask() as usize]
+    (if dir.x < 0.0 { 0 } else { 0x0404_0404 })
+        | (if dir.y < 0.0 { 0 } else { 0x0202_0202 })
+        | (if dir.z < 0.0 { 0 } else { 0x0101_0101 })
 }
 
 /// Up to how many active rays of a packet a node is tested ray by ray ([`child_hits_avx2`]),
@@ -304,7 +199,7 @@ struct PacketGroup {
     lanes: u64,
 }
 
-/// The rays of a packet, one per lane, as [`child_hits_avx2`] and [`RtTri::uvt`] read them.
+/// The rays of a packet, one per lane, as [`node_hits_avx2`] and [`RtTri::uvt`] read them.
 #[cfg(target_arch = "x86_64")]
 #[derive(Clone, Copy)]
 struct Lanes {
@@ -347,7 +242,7 @@ impl Lanes {
     }
 
     /// In byte `j`: the lanes of `active` whose rays (closest hits so far at `tmax`) enter
-    /// child `j` of `node`. Each lane computes [`child_hits_avx2`]'s IEEE operations for that
+    /// child `j` of `node`. Each lane computes [`node_hits_avx2`]'s IEEE operations for that
     /// child, in the same order, so its bit is that test's, bit for bit.
     #[target_feature(enable = "avx2")]
     #[inline]
@@ -455,97 +350,9 @@ impl Lanes {
     }
 }
 
-/// Entries of the single-ray traversal stack: one group per level of the deepest tree built
-/// (`MAX_CWBVH_DEPTH` levels below the root), a power of two so that masking the depth
-/// replaces the bounds check.
-const STACK: usize = MAX_CWBVH_DEPTH as usize + 1;
-const _: () = assert!(STACK.is_power_of_two());
-
-/// obvhs's CWBVH traversal (its `traverse!` macro) written out: the same nodes, and the same
-/// primitives, in the same order, so the same answers; but its state lives in a few registers
-/// (the macro's took about forty instructions per node). `primitive` tests one primitive (BVH
-/// order) along the ray, may shorten the ray (its `tmax` culls the nodes after), and says
-/// whether to stop. Whether a primitive stopped it.
-#[inline(always)]
-fn walk(
-    nodes: &[CwBvhNode],
-    test: &impl NodeTest,
-    oct_inv4: u32,
-    ray: &mut Ray,
-    mut primitive: impl FnMut(&mut Ray, u32) -> bool,
-) -> bool {
-    // Groups of children left to visit: the first child's index, and (as obvhs's
-    // `current_group.y`) their priority bits in the top byte, the node's `imask` in the low one.
-    let mut stack = [(0u32, 0u32); STACK];
-    let mut depth = 0usize;
-    let (mut child_base, mut bits) = (0u32, 0x8000_0000u32);
-    loop {
-        if bits & 0xff00_0000 == 0 {
-            let Some(top) = depth.checked_sub(1) else {
-                return false;
-            };
-            depth = top;
-            // Only groups with children left are pushed.
-            (child_base, bits) = stack[depth & (STACK - 1)];
-        }
-        let offset = 31 - bits.leading_zeros();
-        let slot = (offset - 24) ^ (oct_inv4 & 0xff);
-        let child = child_base + (bits & !(u32::MAX << slot)).count_ones();
-        bits &= !(1 << offset);
-        if bits & 0xff00_0000 != 0 {
-            // At most one group per level: `depth` stays below `STACK`.
-            stack[depth & (STACK - 1)] = (child_base, bits);
-            depth += 1;
-        }
-        let node = &nodes[child as usize];
-        let hits = test.hits(node, ray.tmax);
-        // The leaves' primitives first, highest bit first, as obvhs tests them.
-        let mut primitives = hits & 0x00ff_ffff;
-        while primitives != 0 {
-            let k = 31 - primitives.leading_zeros();
-            primitives &= !(1 << k);
-            if primitive(ray, node.primitive_base_idx + k) {
-                return true;
-            }
-        }
-        (child_base, bits) = (
-            node.child_base_idx,
-            (hits & 0xff00_0000) | node.imask as u32,
-        );
-    }
-}
-
-/// [`walk`] with the node test of `isa`, chosen once per ray.
-#[inline(always)]
-#[allow(unsafe_code)]
-fn walk_isa(
-    bvh: &CwBvh,
-    isa: Isa,
-    ray: &mut Ray,
-    mut primitive: impl FnMut(&mut Ray, u32) -> bool,
-) -> bool {
-    let oct_inv4 = octant_inv4(ray.direction);
-    match isa {
-        #[cfg(target_arch = "x86_64")]
-        Isa::Avx2 => {
-            // SAFETY: a BVH's `isa` is `Isa::detect()`, which is `Avx2` only where the CPU has
-            // it.
-            let test = unsafe { Avx2Test::new(ray, oct_inv4) };
-            walk(&bvh.nodes, &test, oct_inv4, ray, &mut primitive)
-        }
-        _ => {
-            let test = ObvhsTest {
-                ray: *ray,
-                oct_inv4,
-            };
-            walk(&bvh.nodes, &test, oct_inv4, ray, &mut primitive)
-        }
-    }
-}
-
-/// The closest primitive along `ray` and its distance: obvhs's `CwBvh::ray_traverse` through
-/// [`walk`], compiled into (and inlined by) the renderer's CPU-feature variants
-/// (`render::render_tile`) instead of once for baseline x86-64.
+/// The closest primitive along `ray` and its distance: obvhs's `CwBvh::ray_traverse`, through
+/// its `traverse!` macro here so that the traversal is compiled into (and inlined by) the
+/// renderer's CPU-feature variants (`render::render_tile`) instead of once for baseline x86-64.
 #[inline(always)]
 fn closest(
     bvh: &CwBvh,
@@ -553,33 +360,54 @@ fn closest(
     ray: Ray,
     mut intersect: impl FnMut(&Ray, usize) -> f32,
 ) -> Option<(u32, f32)> {
-    // The ray's `tmax` becomes the closest hit's distance.
-    let (mut traverse_ray, mut found) = (ray, 0);
-    walk_isa(bvh, isa, &mut traverse_ray, |r, id| {
-        let t = intersect(r, id as usize);
-        if t < r.tmax {
-            (r.tmax, found) = (t, id);
+    let mut traverse_ray = ray;
+    let mut hit = RayHit::none();
+    let mut state = bvh.new_traversal(ray.direction);
+    let mut node;
+    obvhs::traverse!(
+        bvh,
+        node,
+        state,
+        node_hits(isa, node, &traverse_ray, state.oct_inv4),
+        {
+            let t = intersect(&traverse_ray, state.primitive_id as usize);
+            if t < traverse_ray.tmax {
+                hit.primitive_id = state.primitive_id;
+                hit.t = t;
+                traverse_ray.tmax = t;
+            }
         }
-        false
-    });
-    (traverse_ray.tmax < ray.tmax).then_some((found, traverse_ray.tmax))
+    );
+    (hit.t < ray.tmax).then_some((hit.primitive_id, hit.t))
 }
 
-/// A primitive that lies along `ray`, if any: obvhs's `CwBvh::ray_traverse_miss` through
-/// [`walk`], stopped at the first hit, for the same reason as [`closest`].
+/// A primitive that lies along `ray`, if any: obvhs's `CwBvh::ray_traverse_miss`, stopped at
+/// the first hit, for the same reason as [`closest`].
 #[inline(always)]
 fn any_hit(
     bvh: &CwBvh,
     isa: Isa,
-    mut ray: Ray,
+    ray: Ray,
     mut intersect: impl FnMut(&Ray, usize) -> f32,
 ) -> Option<u32> {
-    let mut found = 0;
-    walk_isa(bvh, isa, &mut ray, |r, id| {
-        found = id;
-        intersect(r, id as usize) < r.tmax
-    })
-    .then_some(found)
+    let mut state = bvh.new_traversal(ray.direction);
+    let mut node;
+    let mut hit = None;
+    'outer: {
+        obvhs::traverse!(
+            bvh,
+            node,
+            state,
+            node_hits(isa, node, &ray, state.oct_inv4),
+            {
+                if intersect(&ray, state.primitive_id as usize) < ray.tmax {
+                    hit = Some(state.primitive_id);
+                    break 'outer;
+                }
+            }
+        );
+    }
+    hit
 }
 
 /// The two ray queries a renderer makes. The renderer traces through [`Bvh`]; the benchmark
@@ -1015,7 +843,7 @@ impl Bvh {
 
     /// The closest triangle (BVH order) and distance along each of `rays[..n]`, traced
     /// together: one traversal whose stack entries carry, per child, the lanes that enter it.
-    /// Each ray meets the nodes and triangles it would alone (its masks are [`Avx2Test::hits`]'s,
+    /// Each ray meets the nodes and triangles it would alone (its masks are [`node_hits_avx2`]'s,
     /// lane by lane), in the same order (the rays share their octant, so the children's order),
     /// with the same `tmax` at each test: so the same answer, bit for bit
     /// (`packets_answer_as_single_rays`).
@@ -1029,7 +857,6 @@ impl Bvh {
     ) -> [Option<(u32, f32)>; PACKET] {
         use std::arch::x86_64::*;
         let lanes = Lanes::new(rays);
-        let negative = negative_masks(rays[0].direction);
         let tmin = _mm256_set1_ps(rays[0].tmin);
         let tmax0 = _mm256_set1_ps(rays[0].tmax);
         // Per lane: the closest hit so far (the traversal's `tmax`) and its triangle.
@@ -1079,19 +906,12 @@ impl Bvh {
                 while r != 0 {
                     let i = r.trailing_zeros();
                     r &= r - 1;
-                    let ray = &rays[i as usize];
-                    let hit = _mm256_movemask_ps(child_hits_avx2(
-                        node,
-                        ray.origin,
-                        ray.inv_direction,
-                        &negative,
-                        t[i as usize],
-                    )) as u32;
+                    let hit = child_hits_avx2(node, &rays[i as usize], t[i as usize]);
                     lanes_of_child |= _pdep_u64(hit as u64, 0x0101_0101_0101_0101) << i;
                 }
                 lanes_of_child
             };
-            // The children's lanes into the node's hit mask, as `hit_mask_avx2` builds it.
+            // The children's lanes into the node's hit mask, as `node_hits_avx2` builds it.
             let (child_bits8, bit_index8) = node.get_child_and_index_bits(oct_inv4);
             let (mut hits, mut lanes_of_slot) = (0u32, 0u64);
             let mut entered = lanes_of_child;
@@ -1329,86 +1149,6 @@ mod tests {
         );
     }
 
-    /// The hand-written traversal ([`walk`]) answers as obvhs's own (`ray_traverse`, and its
-    /// `traverse!` stopped at the first hit), bit for bit and with the same occluder found
-    /// first, with the AVX2 node test and the baseline one: random triangles, short rays and
-    /// long ones, axis-parallel ones too. Not vacuous: many rays hit, many miss.
-    #[test]
-    fn walk_answers_as_obvhs() {
-        // obvhs's `traverse!` names `UVec2` unqualified.
-        use glam::UVec2;
-        let mut rng = Rng::new(13, 0);
-        let mut point = |scale: f32| {
-            let u = rng.uniform2();
-            let w = rng.uniform();
-            (Vec3::new(u.x, u.y, w) * 2.0 - 1.0) * scale
-        };
-        let triangles: Vec<[Vec3; 3]> = (0..3000)
-            .map(|_| {
-                let c = point(4.0);
-                [c + point(0.4), c + point(0.4), c + point(0.4)]
-            })
-            .collect();
-        let rays: Vec<(Vec3, Vec3, f32)> = (0..4000)
-            .filter_map(|i| {
-                // Most toward the triangles, some axis-parallel.
-                let origin = point(6.0);
-                let mut dir = point(3.0) - origin;
-                match i % 7 {
-                    0 => dir.x = 0.0,
-                    1 => dir = Vec3::new(0.0, 0.0, dir.z),
-                    _ => {}
-                }
-                let tmax = [0.5, 4.0, f32::INFINITY][i % 3];
-                (dir != Vec3::ZERO).then(|| (origin, dir.normalize(), tmax))
-            })
-            .collect();
-        let mut bvh = Bvh::build(&triangles).unwrap();
-        let (mut hits, mut traced) = (0, 0);
-        for isa in Isa::ALL.into_iter().filter(|isa| isa.available()) {
-            bvh.isa = isa;
-            let cwbvh = bvh.cwbvh.as_ref().unwrap();
-            for (i, &(origin, dir, tmax)) in rays.iter().enumerate() {
-                let ray = make_ray(origin, dir, 0.0, tmax);
-                let intersect = |r: &Ray, id: usize| bvh.triangles[id].intersect(r);
-                let mut expected = RayHit::none();
-                let closest = cwbvh
-                    .ray_traverse(ray, &mut expected, intersect)
-                    .then_some((expected.primitive_id, expected.t.to_bits()));
-                let found = super::closest(cwbvh, isa, ray, intersect);
-                assert_eq!(found.map(|(id, t)| (id, t.to_bits())), closest, "ray {i}");
-                let mut state = cwbvh.new_traversal(ray.direction);
-                let mut node;
-                let mut first = None;
-                'outer: {
-                    obvhs::traverse!(
-                        cwbvh,
-                        node,
-                        state,
-                        node.intersect_ray(&ray, state.oct_inv4),
-                        {
-                            if intersect(&ray, state.primitive_id as usize) < ray.tmax {
-                                first = Some(state.primitive_id);
-                                break 'outer;
-                            }
-                        }
-                    );
-                }
-                assert_eq!(
-                    bvh.occluder(origin, dir, 0.0, tmax, NO_OCCLUDER),
-                    first,
-                    "ray {i}"
-                );
-                hits += closest.is_some() as u32;
-                traced += 1;
-            }
-        }
-        assert!(
-            hits > traced / 5 && hits < traced * 4 / 5,
-            "{hits} of {traced}"
-        );
-    }
-
     /// The AVX2 node test gives obvhs's mask for every node of a tree and rays in every octant,
     /// axis-parallel ones too (+0.0 components: which slab plane is near is decided by the
     /// direction's sign, and obvhs's safe inverse makes them huge but finite), short ones, and
@@ -1451,7 +1191,7 @@ mod tests {
             for node in &cwbvh.nodes {
                 let sse = node.intersect_ray(&ray, oct_inv4);
                 // SAFETY: AVX2 was detected above.
-                let avx2 = unsafe { Avx2Test::new(&ray, oct_inv4).hits_avx2(node, ray.tmax) };
+                let avx2 = unsafe { node_hits_avx2(node, &ray, oct_inv4) };
                 assert_eq!(sse, avx2, "ray {i}: {ray:?}, node {node:?}");
                 compared += 1;
                 hits += (sse != 0) as u32;
