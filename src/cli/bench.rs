@@ -56,9 +56,9 @@ fn trace_tile_isa(
     tile: &[RecordedRay],
     keep: &impl Fn(&RecordedRay) -> bool,
 ) -> (usize, f32) {
-    #[cfg(target_arch = "x86_64")]
     if isa == Isa::Avx2 && isa.available() {
         // SAFETY: called only where the CPU has the variant's features, checked above.
+        #[cfg(target_arch = "x86_64")]
         #[allow(unsafe_code)]
         return unsafe { trace_tile_avx2(bvh, tile, keep) };
     }
