@@ -1,5 +1,6 @@
-//! `portalview bench`: raw obvhs traversal against the whole renderer, and the cost of each
-//! strategy, on the built-in scenes. Multithreaded like the renderer, so the rays/s compare.
+//! `portalview bench`: the renderer's bare traversal against the whole renderer, and the cost
+//! of each strategy, on the built-in scenes. Multithreaded like the renderer, so the rays/s
+//! compare.
 
 use anyhow::Result;
 use rayon::prelude::*;

@@ -92,7 +92,7 @@ pub struct ConvexPolygon {
     /// [`Self::ray_through`] (fixed per polygon, so not recomputed per evaluation).
     reach: f64,
     /// Per edge `(v_i, v_{i+1})`, the plane through it perpendicular to the polygon, positive
-    /// inside: [`clip_convex_into`]'s half-spaces, fixed per polygon (a clip runs per shading
+    /// inside: [`clip_convex_in`]'s half-spaces, fixed per polygon (a clip runs per shading
     /// point).
     edge_planes: ArrayVec<Plane, MAX_POLYGON_VERTICES>,
 }
