@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # portalview against Mitsuba 3 on the built-in scenes (see mitsuba_bench.py). Makes a virtual
 # environment in bench/peers/.venv with Mitsuba 3.9 from PyPI, builds portalview, and runs the
-# benchmark; arguments go to mitsuba_bench.py. Mitsuba's llvm_ad_rgb variant needs LLVM's
+# benchmark; arguments go to mitsuba_bench.py. `run.sh rays [ARGS]` runs mitsuba_rays.py instead
+# (raw traversal of the same rays in both renderers). Mitsuba's llvm_ad_rgb variant needs LLVM's
 # shared library: Debian's libllvm19 (installed here when missing and running as root).
 set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
@@ -25,4 +26,9 @@ if [ -z "${PORTALVIEW:-}" ]; then
     (cd "$root" && cargo build --release)
     PORTALVIEW="$root/target/release/portalview"
 fi
-exec "$venv/bin/python" "$here/mitsuba_bench.py" --portalview "$PORTALVIEW" "$@"
+script=mitsuba_bench.py
+if [ "${1:-}" = rays ]; then
+    script=mitsuba_rays.py
+    shift
+fi
+exec "$venv/bin/python" "$here/$script" --portalview "$PORTALVIEW" "$@"

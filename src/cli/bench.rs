@@ -2,8 +2,10 @@
 //! of each strategy, on the built-in scenes. Multithreaded like the renderer, so the rays/s
 //! compare.
 
-use anyhow::Result;
+use anyhow::{Context, Result};
+use glam::Vec3;
 use rayon::prelude::*;
+use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use clap::Args;
@@ -111,8 +113,9 @@ pub struct BenchArgs {
     /// Which measurements: throughput (traversal, samples/s, the cost of textures),
     /// convergence (MSE at equal spp per sampler, time to the target relMSE), textures (only
     /// their cost: each built-in scene with and without textures), tiles (the cost of a sample
-    /// on one thread, robust to other load: each tile's fastest of `--repeats` renders), or
-    /// all (everything but tiles).
+    /// on one thread, robust to other load: each tile's fastest of `--repeats` renders), rays
+    /// (raw traversal of rays read from files: `--rays-scene`, `--closest-rays`,
+    /// `--occlusion-rays`), or all (everything but tiles and rays).
     #[arg(long, value_enum, default_value_t = BenchPart::All)]
     pub only: BenchPart,
     /// The relMSE that "time to an equal error" waits for.
@@ -136,6 +139,16 @@ pub struct BenchArgs {
     /// Renders of each tile in `--only tiles`; the fastest counts.
     #[arg(long, default_value_t = 5)]
     pub repeats: u32,
+    /// With `--only rays`: the scene (built-in name or glTF file) to trace the rays through.
+    #[arg(long)]
+    pub rays_scene: Option<String>,
+    /// With `--only rays`: closest-hit rays, as little-endian f32 records of 8 values
+    /// (origin x y z, direction x y z, tmin, tmax).
+    #[arg(long)]
+    pub closest_rays: Option<PathBuf>,
+    /// With `--only rays`: occlusion rays, records as for `--closest-rays`.
+    #[arg(long)]
+    pub occlusion_rays: Option<PathBuf>,
 }
 
 /// The parts of `portalview bench`.
@@ -146,6 +159,9 @@ pub enum BenchPart {
     Convergence,
     Textures,
     Tiles,
+    /// Raw traversal of rays read from files (`--rays-scene`, `--closest-rays`,
+    /// `--occlusion-rays`): another renderer's rays, traced as portalview traces its own.
+    Rays,
 }
 
 /// `portalview bench`: raw traversal against the renderer, each strategy's cost, and each
@@ -157,6 +173,9 @@ pub fn run(args: &BenchArgs) -> Result<()> {
     if args.only == BenchPart::Tiles {
         return tiles(args.size, args.repeats);
     }
+    if args.only == BenchPart::Rays {
+        return rays_from_files(args);
+    }
     if args.only != BenchPart::Convergence {
         throughput(args)?;
     }
@@ -165,6 +184,104 @@ pub fn run(args: &BenchArgs) -> Result<()> {
     }
     Ok(())
 }
+
+/// Values per record of a ray file: origin, direction, tmin, tmax.
+const RAY_RECORD_FLOATS: usize = 8;
+
+/// Rays a file holds as little-endian f32 records (origin x y z, direction x y z, tmin,
+/// tmax): closest-hit queries if `closest`, else occlusion queries.
+pub fn read_ray_file(path: &Path, closest: bool) -> Result<Vec<RecordedRay>> {
+    let bytes =
+        std::fs::read(path).with_context(|| format!("{}: cannot read rays", path.display()))?;
+    let record = RAY_RECORD_FLOATS * 4;
+    anyhow::ensure!(
+        bytes.len() % record == 0,
+        "{}: {} bytes is not a whole number of {record}-byte ray records (origin, direction, tmin, tmax as little-endian f32)",
+        path.display(),
+        bytes.len()
+    );
+    let mut rays = Vec::with_capacity(bytes.len() / record);
+    for (i, chunk) in bytes.chunks_exact(record).enumerate() {
+        let mut v = [0.0f32; RAY_RECORD_FLOATS];
+        for (value, b) in v.iter_mut().zip(chunk.chunks_exact(4)) {
+            *value = f32::from_le_bytes([b[0], b[1], b[2], b[3]]);
+        }
+        let ray = RecordedRay {
+            origin: Vec3::new(v[0], v[1], v[2]),
+            dir: Vec3::new(v[3], v[4], v[5]),
+            tmin: v[6],
+            tmax: v[7],
+            closest,
+        };
+        anyhow::ensure!(
+            ray.origin.is_finite()
+                && ray.dir.is_finite()
+                && ray.dir != Vec3::ZERO
+                && ray.tmin.is_finite()
+                && ray.tmin <= ray.tmax,
+            "{}: ray {i} is not a ray (origin {}, direction {}, tmin {}, tmax {})",
+            path.display(),
+            ray.origin,
+            ray.dir,
+            ray.tmin,
+            ray.tmax
+        );
+        rays.push(ray);
+    }
+    Ok(rays)
+}
+
+/// `--only rays`: the raw traversal's rays/s (one ray at a time, as in the throughput table)
+/// over rays another renderer traced, in the files' order, spread over all cores in runs of
+/// [`RAY_FILE_TILE`] rays.
+fn rays_from_files(args: &BenchArgs) -> Result<()> {
+    let name = args
+        .rays_scene
+        .as_deref()
+        .context("--only rays needs --rays-scene")?;
+    anyhow::ensure!(
+        args.closest_rays.is_some() || args.occlusion_rays.is_some(),
+        "--only rays needs --closest-rays or --occlusion-rays"
+    );
+    let scene = Scene::open(name).with_context(|| format!("{name}: cannot open the scene"))?;
+    let bvh = &scene.geometry.bvh;
+    let budget = Duration::from_secs_f64(args.seconds);
+    println!(
+        "portalview bench --only rays: {name}, {} threads, {:.1} s per measurement",
+        rayon::current_num_threads(),
+        args.seconds
+    );
+    for (path, closest) in [(&args.closest_rays, true), (&args.occlusion_rays, false)] {
+        let Some(path) = path else {
+            continue;
+        };
+        let rays = read_ray_file(path, closest)?;
+        let tiles: Vec<Vec<RecordedRay>> = rays.chunks(RAY_FILE_TILE).map(<[_]>::to_vec).collect();
+        let answered = rays
+            .iter()
+            .filter(|r| {
+                if closest {
+                    bvh.closest_hit(r.origin, r.dir, r.tmin, r.tmax).is_some()
+                } else {
+                    bvh.occluded(r.origin, r.dir, r.tmin, r.tmax)
+                }
+            })
+            .count();
+        let rate = replay(bvh, &tiles, budget, |_| true);
+        println!(
+            "{}: {} rays, {} {}, {:.1} Mrays/s",
+            if closest { "closest-hit" } else { "occlusion" },
+            rays.len(),
+            answered,
+            if closest { "hit" } else { "occluded" },
+            rate / 1e6
+        );
+    }
+    Ok(())
+}
+
+/// Rays per task of `--only rays`.
+const RAY_FILE_TILE: usize = 4096;
 
 /// The cost of one sample on one thread, per built-in scene and strategy: every tile of a
 /// `size²` image (pass 0) is rendered `repeats` times in this thread, and the fastest time of
@@ -497,4 +614,78 @@ fn percentile(sorted: &[f64], q: f64) -> f64 {
         return f64::NAN;
     }
     sorted[((q * sorted.len() as f64).ceil() as usize).clamp(1, sorted.len()) - 1]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn write(path: &Path, values: &[f32]) {
+        let bytes: Vec<u8> = values.iter().flat_map(|v| v.to_le_bytes()).collect();
+        std::fs::write(path, bytes).unwrap();
+    }
+
+    #[test]
+    fn ray_files_read_back_and_bad_ones_are_named() {
+        let dir = std::env::temp_dir().join(format!("portalview-ray-file-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let good = dir.join("good.rays");
+        let rays = [
+            [0.0, 1.0, 5.0, 0.0, 0.0, -1.0, 0.0, f32::INFINITY],
+            [0.5, 0.25, 2.0, 0.0, -1.0, 0.0, 1e-4, 3.0],
+        ];
+        write(&good, rays.as_flattened());
+        let read = read_ray_file(&good, false).unwrap();
+        assert_eq!(read.len(), 2);
+        for (r, v) in read.iter().zip(&rays) {
+            assert_eq!(r.origin, Vec3::new(v[0], v[1], v[2]));
+            assert_eq!(r.dir, Vec3::new(v[3], v[4], v[5]));
+            assert_eq!((r.tmin, r.tmax, r.closest), (v[6], v[7], false));
+        }
+
+        // A truncated record: the file and the record layout are named.
+        let short = dir.join("short.rays");
+        write(&short, &rays.as_flattened()[..11]);
+        let message = format!("{:#}", read_ray_file(&short, true).unwrap_err());
+        assert!(
+            message.contains("short.rays") && message.contains("32-byte ray records"),
+            "{message}"
+        );
+
+        // A record that is not a ray: the file and the ray's number.
+        let bad = dir.join("bad.rays");
+        let mut values = rays.as_flattened().to_vec();
+        values[8 + 3..8 + 6].fill(0.0);
+        write(&bad, &values);
+        let message = format!("{:#}", read_ray_file(&bad, true).unwrap_err());
+        assert!(
+            message.contains("bad.rays") && message.contains("ray 1 "),
+            "{message}"
+        );
+
+        let missing = format!(
+            "{:#}",
+            read_ray_file(&dir.join("none.rays"), true).unwrap_err()
+        );
+        assert!(missing.contains("none.rays"), "{missing}");
+
+        // End to end on a built-in scene (the form `bench/peers/mitsuba_rays.py` reads).
+        let args = BenchArgs {
+            seconds: 0.01,
+            size: 16,
+            ui: false,
+            only: BenchPart::Rays,
+            target_relmse: 1e-4,
+            cap_seconds: 1.0,
+            mse_spp: 1,
+            reference_spp: 1,
+            cache_dir: None,
+            repeats: 1,
+            rays_scene: Some("fig8a".into()),
+            closest_rays: Some(good.clone()),
+            occlusion_rays: Some(good),
+        };
+        rays_from_files(&args).unwrap();
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 }
