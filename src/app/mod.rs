@@ -1,8 +1,8 @@
 //! The viewer: an eframe window showing the progressive render of a scene, the antishadow
 //! overlays, portal editing and the comparison mode. The app owns UI state only: rendering
 //! happens on the worker, reached through one [`RenderHandle`], scenes are opened and saved
-//! by background [`loader::Job`]s, and what an edit needs that takes long (window tables, an
-//! environment) is made by the [`builder::Builder`]; the UI never waits on any of them.
+//! by background `loader::Job`s, and what an edit needs that takes long (window tables, an
+//! environment) is made by the `builder::Builder`; the UI never waits on any of them.
 //!
 //! This file holds the app, its frame loop and the commands a frame collects; each panel,
 //! the viewport, the gizmo and the file dialogs live in their own files.

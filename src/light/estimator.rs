@@ -391,7 +391,7 @@ impl LightSampler {
     }
 
     /// Draws a direction from the mixture: the light technique (the `alpha` share and the
-    /// terms that use it) or another technique by `u.x` ([`split_share`]), that term among
+    /// terms that use it) or another technique by `u.x` (`split_share`), that term among
     /// several by `u_technique`, the direction by the stretched `u`. Where every term uses the
     /// light technique (antiumbra) the mixture is light sampling and `u` is used as it is: one
     /// net over the light, not two stretched ones. `None` when the drawn share has no
@@ -637,7 +637,7 @@ pub fn term_pdf(scene: &impl LightSet, x: Vec3, term: &PortalTerm, p_light: f32,
 }
 
 /// The portal technique: a direction through a uniform point of the portal, with its
-/// solid-angle pdf ([`ConvexPolygon::sample_direction`]).
+/// solid-angle pdf ([`crate::sampling::polygon::ConvexPolygon::sample_direction`]).
 pub fn sample_portal(portal: &Portal, x: Vec3, u: Vec2) -> Option<(Vec3, f32)> {
     portal.polygon.sample_direction(x, u)
 }

@@ -46,7 +46,7 @@ pub struct ClippedHull {
 /// Which bounding solid [`bounding_half_spaces`] builds.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum HullKind {
-    /// The convex hull of the vertices (for at most [`MAX_EXACT_POINTS`] of them).
+    /// The convex hull of the vertices (for at most `MAX_EXACT_POINTS` of them).
     Exact,
     /// An octagonal prism around the longest extent, holding every vertex.
     Prism,

@@ -188,7 +188,7 @@ impl<'a> Integrator<'a> {
 
     /// Whether a path's first ray is a closest-hit query, whose answer a caller may trace
     /// ahead for [`Self::radiance_from`]: with polygon lights and no bounce, the camera sees
-    /// the lights through [`Self::emission_along`] instead.
+    /// the lights through `emission_along` instead.
     pub fn camera_hits_traced(&self) -> bool {
         self.settings.max_depth > 0 || !self.polygon_lights
     }

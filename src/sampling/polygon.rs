@@ -341,7 +341,7 @@ impl ConvexPolygon {
     /// If the ray `x + t·wi` (`t > 0`) passes through the polygon: `t` and the cosine of `wi`
     /// with the normal. Computed in f64 relative to `x` (differences of f32 positions are exact
     /// there), with the inside test against the planes through `x` and each edge, allowing
-    /// [`EDGE_SLACK`]: a direction [`Self::sample_direction`] drew near an edge must never be
+    /// `EDGE_SLACK`: a direction [`Self::sample_direction`] drew near an edge must never be
     /// judged outside, or its sample would be weighted by a mixture pdf without its own term.
     #[inline(always)]
     pub fn ray_through(&self, x: Vec3, wi: Vec3) -> Option<(f64, f64)> {

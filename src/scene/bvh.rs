@@ -799,7 +799,7 @@ impl Bvh {
 
     /// [`Self::closest_hit`] of each ray `origins[i] + t·dirs[i]` into `hits[i]`. Two to
     /// [`PACKET`] rays of one direction octant are traced together where the CPU has AVX2 and
-    /// no triangle is cut out ([`Self::closest_packet`]); others one by one. Same answers.
+    /// no triangle is cut out (`closest_packet`); others one by one. Same answers.
     #[inline(always)]
     pub fn closest_hits(
         &self,

@@ -115,8 +115,8 @@ struct TextureKey {
     error_map: bool,
 }
 
-/// The comparison mode's state. The app hands it the scene ([`Self::set_scene`]), calls
-/// [`Self::sync`] every frame while the mode is on and [`Self::stop`] when it ends.
+/// The comparison mode's state. The app hands it the scene (`set_scene`), calls
+/// `sync` every frame while the mode is on and `stop` when it ends.
 pub struct CompareView {
     worker: Option<CompareHandle>,
     frame: Option<Arc<CompareFrame>>,
@@ -181,13 +181,13 @@ impl CompareView {
         self.scene = Some((scene, hash));
     }
 
-    /// Whether the comparison worker exists (between the first [`Self::sync`] and
-    /// [`Self::stop`]).
+    /// Whether the comparison worker exists (between the first `sync` and
+    /// `stop`).
     pub fn is_running(&self) -> bool {
         self.worker.is_some()
     }
 
-    /// The newest frame of the comparison (kept after [`Self::stop`] until the next start).
+    /// The newest frame of the comparison (kept after `stop` until the next start).
     pub fn frame(&self) -> Option<&CompareFrame> {
         self.frame.as_deref()
     }
@@ -200,7 +200,7 @@ impl CompareView {
         }
     }
 
-    /// Uses a reference EXR (`None`: render one) from the next [`Self::sync`] on.
+    /// Uses a reference EXR (`None`: render one) from the next `sync` on.
     /// Stops the comparison: its worker ends (this waits for its current pass to abandon).
     pub(super) fn stop(&mut self) {
         self.worker = None;
