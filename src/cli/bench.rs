@@ -1,6 +1,6 @@
 //! `portalview bench`: the renderer's bare traversal against the whole renderer, and the cost
-//! of each strategy, on the built-in scenes. Multithreaded like the renderer, so the rays/s
-//! compare.
+//! of each strategy, on the built-in scenes; and the bare traversal of rays read from files
+//! (another renderer's). Multithreaded like the renderer, so the rays/s compare.
 
 use anyhow::{Context, Result};
 use glam::Vec3;
@@ -190,7 +190,7 @@ const RAY_RECORD_FLOATS: usize = 8;
 
 /// Rays a file holds as little-endian f32 records (origin x y z, direction x y z, tmin,
 /// tmax): closest-hit queries if `closest`, else occlusion queries.
-pub fn read_ray_file(path: &Path, closest: bool) -> Result<Vec<RecordedRay>> {
+fn read_ray_file(path: &Path, closest: bool) -> Result<Vec<RecordedRay>> {
     let bytes =
         std::fs::read(path).with_context(|| format!("{}: cannot read rays", path.display()))?;
     let record = RAY_RECORD_FLOATS * 4;

@@ -200,7 +200,6 @@ impl CompareView {
         }
     }
 
-    /// Uses a reference EXR (`None`: render one) from the next `sync` on.
     /// Stops the comparison: its worker ends (this waits for its current pass to abandon).
     pub(super) fn stop(&mut self) {
         self.worker = None;
