@@ -15,7 +15,8 @@ use crate::light::Strategy;
 /// --out (with --figure8: one subfolder per scene, plus figure8.csv, figure8.md, figure8.svg).
 #[derive(Args, Debug, Clone)]
 pub struct CompareArgs {
-    /// Built-in name (lampshade, fig8a, fig8b, fig8c, window, windows2) or a .gltf/.glb path.
+    /// Built-in name (lampshade, fig8a, fig8b, fig8c, window, windows2, desklamp) or a .gltf/.glb
+    /// path.
     #[arg(long, required_unless_present = "figure8", conflicts_with = "figure8")]
     pub scene: Option<String>,
     /// Compare on fig8a, fig8b and fig8c (the thesis's Figure 8).

@@ -10,7 +10,8 @@ use crate::sampling::SamplerKind;
 
 #[derive(Args, Debug, Clone, Default)]
 pub struct ViewArgs {
-    /// Built-in name (lampshade, fig8a, fig8b, fig8c, window, windows2) or a .gltf/.glb path.
+    /// Built-in name (lampshade, fig8a, fig8b, fig8c, window, windows2, desklamp) or a .gltf/.glb
+    /// path.
     pub scene: Option<String>,
     /// Start with this strategy (else the one used last).
     #[arg(long, value_enum)]
