@@ -52,6 +52,12 @@ pub struct CompareArgs {
     /// environment itself) in the compared renders; the reference keeps the scene's.
     #[arg(long)]
     pub alpha: Option<f32>,
+    /// Repeat the comparison this many times, with seeds --seed, --seed + 1, …, against the
+    /// same reference, and report each strategy's efficiency as the mean over the runs ± its
+    /// standard error (one run's ratio moves by several per cent from seed to seed). Each run's
+    /// files go into --out/seed-S; runs.md and runs.csv into --out.
+    #[arg(long, default_value_t = 1, conflicts_with = "figure8")]
+    pub runs: u32,
     /// Where references are cached, by a hash of the scene, camera, size and depth [default:
     /// $XDG_CACHE_HOME/portalview or ~/.cache/portalview]. A cached reference is reused when
     /// it had at least the requested time or spp.
@@ -78,6 +84,7 @@ pub fn run(args: &CompareArgs) -> Result<()> {
         anyhow::ensure!((0.0..=1.0).contains(&a), "--alpha {a} is not in [0, 1]");
     }
     anyhow::ensure!(!args.strategies.is_empty(), "--strategies lists none");
+    anyhow::ensure!(args.runs > 0, "--runs must be at least 1");
     for (i, s) in args.strategies.iter().enumerate() {
         anyhow::ensure!(
             !args.strategies[..i].contains(s),
@@ -159,6 +166,20 @@ pub fn run(args: &CompareArgs) -> Result<()> {
                 );
             }
         }
+        let seeds: Vec<u64> = (0..u64::from(args.runs))
+            .map(|k| args.image.seed.wrapping_add(k))
+            .collect();
+        if let Some(info) = reference
+            .info
+            .as_ref()
+            .filter(|i| seeds[1..].contains(&i.seed))
+        {
+            eprintln!(
+                "warning: {}: the reference was rendered with seed {}, which one of the runs \
+                 uses too, so its noise is correlated with that run's (use another --seed)",
+                scene.name, info.seed
+            );
+        }
         if let Some(info) = &reference.info {
             eprintln!(
                 "{}: reference {} spp in {:.1} s, mean relative standard error {:.3}%, MSE floor {}",
@@ -169,26 +190,42 @@ pub fn run(args: &CompareArgs) -> Result<()> {
                 sci(info.convergence.mse_floor)
             );
         }
-        let settings = CompareSettings {
-            strategies: args.strategies.clone(),
-            seconds: args.seconds,
-            image,
-            seed: args.image.seed,
-            sampler: args.image.sampler,
-            mixture: args.image.mixture,
-            alpha: args.alpha,
-        };
-        let progress = progress_bar(0, "{bar:40} {msg}  {elapsed_precise}");
-        let comparison = compare(&scene, &settings, &reference, &progress);
-        progress.finish_and_clear();
         let dir = if args.figure8 {
             args.out.join(&scene.name)
         } else {
             args.out.clone()
         };
-        written.extend(write_scene_outputs(&dir, &comparison)?);
-        println!("{}", summary_markdown(&comparison));
-        comparisons.push(comparison);
+        let mut runs = Vec::new();
+        for &seed in &seeds {
+            let settings = CompareSettings {
+                strategies: args.strategies.clone(),
+                seconds: args.seconds,
+                image,
+                seed,
+                sampler: args.image.sampler,
+                mixture: args.image.mixture,
+                alpha: args.alpha,
+            };
+            let progress = progress_bar(0, "{bar:40} {msg}  {elapsed_precise}");
+            let comparison = compare(&scene, &settings, &reference, &progress);
+            progress.finish_and_clear();
+            if seeds.len() == 1 {
+                written.extend(write_scene_outputs(&dir, &comparison)?);
+                println!("{}", summary_markdown(&comparison));
+            } else {
+                written.extend(write_scene_outputs(
+                    &dir.join(format!("seed-{seed}")),
+                    &comparison,
+                )?);
+                println!("{}", run_line(&comparison));
+            }
+            runs.push(comparison);
+        }
+        if runs.len() > 1 {
+            written.extend(write_runs_outputs(&dir, &runs)?);
+            println!("\n{}", runs_markdown(&runs));
+        }
+        comparisons.extend(runs);
     }
     if args.figure8 {
         written.extend(write_figure8_outputs(&args.out, &comparisons)?);
@@ -198,4 +235,23 @@ pub fn run(args: &CompareArgs) -> Result<()> {
         println!("wrote {}", path.display());
     }
     Ok(())
+}
+
+/// One run of `--runs`, in a line: each strategy's spp and efficiency over light sampling's.
+fn run_line(c: &SceneComparison) -> String {
+    let parts: Vec<String> = c
+        .results
+        .iter()
+        .map(|r| {
+            let ratio = |v: Option<f64>| v.map_or("–".to_owned(), |v| format!("{v:.3}×"));
+            format!(
+                "{} {} spp, {} ({} above the floor)",
+                r.strategy.name(),
+                r.spp,
+                ratio(r.efficiency_vs_light),
+                ratio(r.efficiency_vs_light_above_floor)
+            )
+        })
+        .collect();
+    format!("{} seed {}: {}", c.scene, c.settings.seed, parts.join("; "))
 }

@@ -19,9 +19,12 @@ pub use equal_time::*;
 pub use metrics::*;
 pub use reference::*;
 pub use report::{
+    MeanSe, RunsRow, runs_csv, runs_markdown, runs_rows, write_figure8_outputs, write_runs_outputs,
+    write_scene_outputs,
+};
+pub use report::{
     convergence_csv, convergence_svg, figure8_csv, figure8_markdown, summary_markdown,
 };
-pub use report::{write_figure8_outputs, write_scene_outputs};
 pub use time_to_error::*;
 
 use indicatif::{ProgressBar, ProgressStyle};

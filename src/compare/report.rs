@@ -5,7 +5,7 @@ use anyhow::{Context, Result};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-use super::equal_time::{ConvergencePoint, SceneComparison};
+use super::equal_time::{ConvergencePoint, SceneComparison, StrategyResult};
 use super::metrics::RELMSE_EPSILON;
 use super::reference::{ReferenceInfo, ReferenceOrigin};
 use crate::light::Strategy;
@@ -350,6 +350,180 @@ pub fn convergence_svg(comparisons: &[SceneComparison]) -> Result<String> {
     Ok(svg)
 }
 
+/// The mean of a quantity over repeated runs, with the standard error of that mean.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MeanSe {
+    pub mean: f64,
+    /// The sample standard deviation over √n: `None` for a single run.
+    pub se: Option<f64>,
+    pub min: f64,
+    pub max: f64,
+}
+
+impl MeanSe {
+    /// `None` for no values.
+    pub fn of(values: &[f64]) -> Option<Self> {
+        let n = values.len() as f64;
+        let mean = values.iter().sum::<f64>() / n;
+        let se = (values.len() > 1).then(|| {
+            let var = values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0);
+            (var / n).sqrt()
+        });
+        (!values.is_empty()).then(|| MeanSe {
+            mean,
+            se,
+            min: values.iter().copied().fold(f64::INFINITY, f64::min),
+            max: values.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+        })
+    }
+
+    /// `0.919× ± 0.005 (0.880–0.960)`, or the value alone for one run.
+    fn ratio_text(&self) -> String {
+        match self.se {
+            Some(se) => format!(
+                "{:.3}× ± {se:.3} ({:.3}–{:.3})",
+                self.mean, self.min, self.max
+            ),
+            None => format!("{:.3}×", self.mean),
+        }
+    }
+}
+
+/// One strategy over the runs of [`runs_rows`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct RunsRow {
+    pub strategy: Strategy,
+    pub runs: usize,
+    pub spp: MeanSe,
+    /// Efficiency over light sampling's, per run; `None` without light sampling.
+    pub efficiency_vs_light: Option<MeanSe>,
+    /// The same from the MSE less the reference's floor; `None` unless every run has it (a
+    /// mean over only the runs above the floor would favour the noisier ones).
+    pub efficiency_vs_light_above_floor: Option<MeanSe>,
+}
+
+/// Each strategy's samples and efficiency over repeated comparisons of one scene (the same
+/// strategies, other seeds): one run's efficiency ratio moves by several per cent from seed to
+/// seed, so a difference of that size needs the mean and its standard error.
+pub fn runs_rows(runs: &[SceneComparison]) -> Vec<RunsRow> {
+    let Some(first) = runs.first() else {
+        return Vec::new();
+    };
+    first
+        .settings
+        .strategies
+        .iter()
+        .filter_map(|&strategy| {
+            let results: Vec<_> = runs
+                .iter()
+                .filter_map(|c| c.results.iter().find(|r| r.strategy == strategy))
+                .collect();
+            let spp: Vec<f64> = results.iter().map(|r| r.spp as f64).collect();
+            let all = |f: fn(&StrategyResult) -> Option<f64>| {
+                let v: Option<Vec<f64>> = results.iter().map(|&r| f(r)).collect();
+                v.and_then(|v| MeanSe::of(&v))
+            };
+            Some(RunsRow {
+                strategy,
+                runs: results.len(),
+                spp: MeanSe::of(&spp)?,
+                efficiency_vs_light: all(|r| r.efficiency_vs_light),
+                efficiency_vs_light_above_floor: all(|r| r.efficiency_vs_light_above_floor),
+            })
+        })
+        .collect()
+}
+
+/// `seed,strategy,spp,seconds,mse,mse_above_floor,efficiency_vs_light,efficiency_vs_light_above_floor`,
+/// one row per run and strategy (empty fields where a value is unknown).
+pub fn runs_csv(runs: &[SceneComparison]) -> String {
+    let mut out = String::from(
+        "seed,strategy,spp,seconds,mse,mse_above_floor,efficiency_vs_light,\
+         efficiency_vs_light_above_floor\n",
+    );
+    let opt = |v: Option<f64>| v.map_or(String::new(), |v| format!("{v:e}"));
+    for c in runs {
+        for r in &c.results {
+            let _ = writeln!(
+                out,
+                "{},{},{},{:.6},{:e},{},{},{}",
+                c.settings.seed,
+                r.strategy.name(),
+                r.spp,
+                r.seconds,
+                r.mse,
+                opt(r.mse_above_floor),
+                opt(r.efficiency_vs_light),
+                opt(r.efficiency_vs_light_above_floor)
+            );
+        }
+    }
+    out
+}
+
+/// The summary of repeated comparisons of one scene: per strategy the mean spp and the mean
+/// efficiency over light sampling's, each ± its standard error over the runs.
+pub fn runs_markdown(runs: &[SceneComparison]) -> String {
+    let mut out = String::new();
+    let Some(first) = runs.first() else {
+        return out;
+    };
+    let s = &first.settings;
+    let seeds: Vec<String> = runs.iter().map(|c| c.settings.seed.to_string()).collect();
+    let _ = writeln!(
+        out,
+        "# Equal-time comparison over {} runs: {}\n",
+        runs.len(),
+        first.scene
+    );
+    let _ = writeln!(
+        out,
+        "{}×{} px, max depth {}, {} s of pass render time per strategy and run, seeds {}, \
+         one reference.\n",
+        s.image.width,
+        s.image.height,
+        s.image.max_depth,
+        s.seconds,
+        seeds.join(", ")
+    );
+    out.push_str(
+        "| strategy | runs | spp | efficiency vs light | (MSE − floor) |\n|---|---:|---:|---:|---:|\n",
+    );
+    let text = |m: Option<MeanSe>| m.map_or("–".to_owned(), |m| m.ratio_text());
+    for row in runs_rows(runs) {
+        let spp = match row.spp.se {
+            Some(se) => format!("{:.1} ± {se:.1}", row.spp.mean),
+            None => format!("{:.0}", row.spp.mean),
+        };
+        let _ = writeln!(
+            out,
+            "| {} | {} | {spp} | {} | {} |",
+            row.strategy.name(),
+            row.runs,
+            text(row.efficiency_vs_light),
+            text(row.efficiency_vs_light_above_floor)
+        );
+    }
+    out.push_str(
+        "\nEach efficiency is one run's 1 / (MSE × seconds) over light sampling's in the same \
+         run, then averaged over the runs: mean ± standard error of the mean (sample standard \
+         deviation over √runs), and the lowest and highest run. The runs share the reference, \
+         so its noise floor is common to them: the (MSE − floor) column takes it out of every \
+         run (– unless every run's MSE is above the floor).\n",
+    );
+    out
+}
+
+/// Writes `runs.csv` and `runs.md` into `dir` (created if needed).
+pub fn write_runs_outputs(dir: &Path, runs: &[SceneComparison]) -> Result<Vec<PathBuf>> {
+    std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create", dir.display()))?;
+    let csv = dir.join("runs.csv");
+    write_file(&csv, runs_csv(runs).as_bytes())?;
+    let md = dir.join("runs.md");
+    write_file(&md, runs_markdown(runs).as_bytes())?;
+    Ok(vec![csv, md])
+}
+
 /// Writes `convergence.csv`, `convergence.svg` and `summary.md` into `dir` (created if needed).
 pub fn write_scene_outputs(dir: &Path, c: &SceneComparison) -> Result<Vec<PathBuf>> {
     std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create", dir.display()))?;
@@ -475,5 +649,56 @@ mod tests {
             .find(|l| l.starts_with("| antishadow"))
             .unwrap_or_default();
         assert!(row.contains("| 2.50× | – |"), "{row}");
+    }
+
+    /// Three runs whose antishadow efficiencies over light are 2.5, 2 and 1 (light's MSE 5e-5,
+    /// antishadow's 2e-5, 2.5e-5, 5e-5, the same time, no floor): mean 11/6, sample variance
+    /// 7/12, standard error √(7/36) = 0.441. Negative cases: one run has no standard error,
+    /// and one run within the reference's floor leaves the floor-subtracted mean unknown
+    /// rather than averaged over the other runs.
+    #[test]
+    fn runs_give_the_mean_efficiency_and_its_standard_error() {
+        let runs: Vec<SceneComparison> = [2e-5, 2.5e-5, 5e-5]
+            .iter()
+            .enumerate()
+            .map(|(k, &mse)| {
+                let mut c = comparison(0.0, mse);
+                c.settings.seed = 10 + k as u64;
+                c
+            })
+            .collect();
+        let rows = runs_rows(&runs);
+        assert_eq!(rows.len(), 2);
+        let light = rows[0].efficiency_vs_light.expect("light's own ratio");
+        assert_eq!((light.mean, light.se), (1.0, Some(0.0)));
+        let a = rows[1].efficiency_vs_light.expect("antishadow's ratio");
+        assert!((a.mean - 11.0 / 6.0).abs() < 1e-12, "{a:?}");
+        assert!(
+            (a.se.unwrap_or(0.0) - (7.0f64 / 36.0).sqrt()).abs() < 1e-12,
+            "{a:?}"
+        );
+        assert!(a.min == 1.0 && (a.max - 2.5).abs() < 1e-12, "{a:?}");
+        assert_eq!(rows[1].efficiency_vs_light_above_floor, Some(a));
+        let md = runs_markdown(&runs);
+        assert!(md.contains("seeds 10, 11, 12"), "{md}");
+        assert!(
+            md.contains("| antishadow | 3 | 10.0 ± 0.0 | 1.833× ± 0.441 (1.000–2.500) |"),
+            "{md}"
+        );
+        let csv = runs_csv(&runs);
+        assert_eq!(csv.lines().count(), 1 + 3 * 2, "{csv}");
+        assert!(
+            csv.contains("\n12,antishadow,10,2.000000,5e-5,5e-5,1e0,1e0\n"),
+            "{csv}"
+        );
+
+        let one = runs_rows(&runs[..1]);
+        assert_eq!(one[1].efficiency_vs_light.and_then(|m| m.se), None);
+        let mut within = runs.clone();
+        within[2] = comparison(6e-5, 5e-5);
+        let rows = runs_rows(&within);
+        assert!(rows[1].efficiency_vs_light.is_some());
+        assert_eq!(rows[1].efficiency_vs_light_above_floor, None);
+        assert!(runs_rows(&[]).is_empty());
     }
 }
