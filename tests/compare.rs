@@ -176,6 +176,89 @@ fn short_compare_writes_csv_svg_and_summary() {
     let _ = std::fs::remove_dir_all(&root);
 }
 
+/// `--runs 3` compares three times against one reference, with seeds 3, 4 and 5: a folder of
+/// files per run whose summary names its seed, and `runs.csv` / `runs.md` over all three.
+/// Negative case: `--runs 0` is an error, not an empty report.
+#[test]
+fn compare_runs_write_each_seed_and_the_mean() {
+    let _serial = serial();
+    let root = temp_dir("runs");
+    let (out, cache) = (root.join("out"), root.join("cache"));
+    run_compare(
+        &out,
+        &cache,
+        &[
+            ("--runs", "3"),
+            ("--strategies", "light,antishadow"),
+            ("--seconds", "0.1"),
+        ],
+    );
+    for seed in 3..6 {
+        let summary = std::fs::read_to_string(out.join(format!("seed-{seed}/summary.md"))).unwrap();
+        assert!(summary.contains(&format!("seed {seed},")), "{summary}");
+    }
+    let (header, rows) = read_csv(&out.join("runs.csv"));
+    assert_eq!(
+        header,
+        "seed,strategy,spp,seconds,mse,mse_above_floor,efficiency_vs_light,\
+         efficiency_vs_light_above_floor"
+    );
+    let seeds: Vec<(&str, &str)> = rows
+        .iter()
+        .map(|r| (r[0].as_str(), r[1].as_str()))
+        .collect();
+    assert_eq!(
+        seeds,
+        [
+            ("3", "light"),
+            ("3", "antishadow"),
+            ("4", "light"),
+            ("4", "antishadow"),
+            ("5", "light"),
+            ("5", "antishadow")
+        ]
+    );
+    for r in &rows {
+        let efficiency: f64 = r[6].parse().unwrap();
+        assert!(efficiency.is_finite() && efficiency > 0.0, "{r:?}");
+    }
+    let md = std::fs::read_to_string(out.join("runs.md")).unwrap();
+    assert!(md.contains("over 3 runs: fig8b"), "{md}");
+    assert!(md.contains("seeds 3, 4, 5"), "{md}");
+    assert!(
+        md.contains("| antishadow | 3 |") && md.contains(" ± "),
+        "{md}"
+    );
+    let cached = std::fs::read_dir(&cache)
+        .unwrap()
+        .filter(|e| {
+            e.as_ref()
+                .unwrap()
+                .path()
+                .extension()
+                .is_some_and(|x| x == "exr")
+        })
+        .count();
+    assert_eq!(cached, 1, "one reference for all runs");
+
+    let cli = Cli::try_parse_from([
+        "portalview",
+        "compare",
+        "--scene",
+        "fig8b",
+        "--seconds",
+        "0.1",
+        "--runs",
+        "0",
+        "--out",
+        &out.display().to_string(),
+    ])
+    .unwrap();
+    let err = run(cli.command.unwrap()).unwrap_err();
+    assert!(err.to_string().contains("--runs"), "{err}");
+    let _ = std::fs::remove_dir_all(&root);
+}
+
 #[test]
 fn figure8_writes_its_table_for_every_scene() {
     let _serial = serial();

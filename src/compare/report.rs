@@ -514,41 +514,56 @@ pub fn runs_markdown(runs: &[SceneComparison]) -> String {
     out
 }
 
-/// Writes `runs.csv` and `runs.md` into `dir` (created if needed).
-pub fn write_runs_outputs(dir: &Path, runs: &[SceneComparison]) -> Result<Vec<PathBuf>> {
+/// Writes each `(file name, contents)` into `dir` (created if needed); the paths written.
+fn write_files(dir: &Path, files: &[(&str, String)]) -> Result<Vec<PathBuf>> {
     std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create", dir.display()))?;
-    let csv = dir.join("runs.csv");
-    write_file(&csv, runs_csv(runs).as_bytes())?;
-    let md = dir.join("runs.md");
-    write_file(&md, runs_markdown(runs).as_bytes())?;
-    Ok(vec![csv, md])
+    files
+        .iter()
+        .map(|(name, contents)| {
+            let path = dir.join(name);
+            write_file(&path, contents.as_bytes())?;
+            Ok(path)
+        })
+        .collect()
 }
 
-/// Writes `convergence.csv`, `convergence.svg` and `summary.md` into `dir` (created if needed).
+/// Writes `runs.csv` and `runs.md` into `dir`.
+pub fn write_runs_outputs(dir: &Path, runs: &[SceneComparison]) -> Result<Vec<PathBuf>> {
+    write_files(
+        dir,
+        &[
+            ("runs.csv", runs_csv(runs)),
+            ("runs.md", runs_markdown(runs)),
+        ],
+    )
+}
+
+/// Writes `convergence.csv`, `convergence.svg` and `summary.md` into `dir`.
 pub fn write_scene_outputs(dir: &Path, c: &SceneComparison) -> Result<Vec<PathBuf>> {
-    std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create", dir.display()))?;
-    let csv = dir.join("convergence.csv");
-    write_file(&csv, convergence_csv(c).as_bytes())?;
-    let svg = dir.join("convergence.svg");
-    let plot =
-        convergence_svg(std::slice::from_ref(c)).with_context(|| svg.display().to_string())?;
-    write_file(&svg, plot.as_bytes())?;
-    let md = dir.join("summary.md");
-    write_file(&md, summary_markdown(c).as_bytes())?;
-    Ok(vec![csv, svg, md])
+    let plot = convergence_svg(std::slice::from_ref(c))
+        .with_context(|| dir.join("convergence.svg").display().to_string())?;
+    write_files(
+        dir,
+        &[
+            ("convergence.csv", convergence_csv(c)),
+            ("convergence.svg", plot),
+            ("summary.md", summary_markdown(c)),
+        ],
+    )
 }
 
 /// Writes `figure8.csv`, `figure8.md` and `figure8.svg` into `dir`.
 pub fn write_figure8_outputs(dir: &Path, comparisons: &[SceneComparison]) -> Result<Vec<PathBuf>> {
-    std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create", dir.display()))?;
-    let csv = dir.join("figure8.csv");
-    write_file(&csv, figure8_csv(comparisons).as_bytes())?;
-    let md = dir.join("figure8.md");
-    write_file(&md, figure8_markdown(comparisons).as_bytes())?;
-    let svg = dir.join("figure8.svg");
-    let plot = convergence_svg(comparisons).with_context(|| svg.display().to_string())?;
-    write_file(&svg, plot.as_bytes())?;
-    Ok(vec![csv, md, svg])
+    let plot = convergence_svg(comparisons)
+        .with_context(|| dir.join("figure8.svg").display().to_string())?;
+    write_files(
+        dir,
+        &[
+            ("figure8.csv", figure8_csv(comparisons)),
+            ("figure8.md", figure8_markdown(comparisons)),
+            ("figure8.svg", plot),
+        ],
+    )
 }
 
 #[cfg(test)]
