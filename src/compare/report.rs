@@ -363,13 +363,16 @@ pub struct MeanSe {
 impl MeanSe {
     /// `None` for no values.
     pub fn of(values: &[f64]) -> Option<Self> {
+        if values.is_empty() {
+            return None;
+        }
         let n = values.len() as f64;
         let mean = values.iter().sum::<f64>() / n;
         let se = (values.len() > 1).then(|| {
             let var = values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0);
             (var / n).sqrt()
         });
-        (!values.is_empty()).then(|| MeanSe {
+        Some(MeanSe {
             mean,
             se,
             min: values.iter().copied().fold(f64::INFINITY, f64::min),
