@@ -53,7 +53,7 @@ pub(crate) fn region_colour(region: Region) -> Color32 {
 /// environment within it, which counts as projection, where an area-light portal's
 /// antiantumbra uses the portal technique.
 pub(crate) fn legend_line(region: Region, areas: bool, windows: bool) -> String {
-    let name = |t: Option<Technique>| t.map_or("light alone", Technique::name);
+    let name = |t: Option<Technique>| technique_name(t, Some(region));
     let area = name(Strategy::Antishadow.technique(region));
     let window = match region {
         Region::Antiantumbra => Some(name(
@@ -68,6 +68,18 @@ pub(crate) fn legend_line(region: Region, areas: bool, windows: bool) -> String 
         _ => area.to_owned(),
     };
     format!("{}: {what}", region.name())
+}
+
+/// What the antishadow mode samples at a point whose portal share uses `technique` and whose
+/// combined region is `region`. Without a technique, a point behind every portal (or with no
+/// portal) samples the light alone; a point outside every antishadow draws only the light's
+/// alpha share, and nothing otherwise (`docs/method.md` §5).
+pub(crate) fn technique_name(technique: Option<Technique>, region: Option<Region>) -> &'static str {
+    match (technique, region) {
+        (Some(t), _) => t.name(),
+        (None, Some(Region::Outside)) => "light, alpha share",
+        (None, _) => "light alone",
+    }
 }
 
 /// `None` is "the light alone" (behind, outside, or no portal).
@@ -127,6 +139,11 @@ mod tests {
         assert_eq!(
             legend_line(Region::Behind, true, false),
             "behind: light alone"
+        );
+        // Outside every antishadow only the alpha share draws: not the light alone.
+        assert_eq!(
+            legend_line(Region::Outside, true, false),
+            "outside: light, alpha share"
         );
         // Windows: the environment within the window, counted as projection.
         assert_eq!(

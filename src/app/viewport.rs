@@ -8,7 +8,7 @@ use glam::{Vec2, Vec3};
 use super::edit::PortalEditor;
 use super::frame_view::FrameView;
 use super::gizmo::PortalFrame;
-use super::overlay::{OverlayKind, region_colour};
+use super::overlay::{self, OverlayKind, region_colour};
 use super::{Command, Current, PortalViewApp};
 use crate::camera::Camera;
 use crate::light::antishadow::Region;
@@ -368,10 +368,9 @@ fn inspector(ui: &Ui, view: &FrameView, current: &Current, rect: Rect, pos: Pos2
                         text += &format!("\n{name}: {}", r.name());
                     }
                 }
-                let technique = primary.technique[i];
                 text += &format!(
                     "\nantishadow uses: {}",
-                    technique.map_or("light alone", |t| t.name())
+                    overlay::technique_name(primary.technique[i], primary.region(i, None))
                 );
             }
             None => text += "\nno hit",
