@@ -82,13 +82,15 @@ pub(crate) fn technique_name(technique: Option<Technique>, region: Option<Region
     }
 }
 
-/// `None` is "the light alone" (behind, outside, or no portal).
-pub(crate) fn technique_colour(technique: Option<Technique>) -> Color32 {
-    match technique {
-        Some(Technique::Light) => region_colour(Region::Antiumbra),
-        Some(Technique::Portal) => region_colour(Region::Antiantumbra),
-        Some(Technique::Projection) => region_colour(Region::Antipenumbra),
-        None => region_colour(Region::Behind),
+/// The *strategy used* overlay's colour: the legend's colour of the region whose line names
+/// what is sampled, as [`technique_name`] does (`region` is the combined region).
+pub(crate) fn technique_colour(technique: Option<Technique>, region: Option<Region>) -> Color32 {
+    match (technique, region) {
+        (Some(Technique::Light), _) => region_colour(Region::Antiumbra),
+        (Some(Technique::Portal), _) => region_colour(Region::Antiantumbra),
+        (Some(Technique::Projection), _) => region_colour(Region::Antipenumbra),
+        (None, Some(Region::Outside)) => region_colour(Region::Outside),
+        (None, _) => region_colour(Region::Behind),
     }
 }
 
@@ -110,7 +112,7 @@ pub(crate) fn overlay_image(
                     .get(i)
                     .copied()
                     .flatten()
-                    .map(|_| technique_colour(primary.technique[i])),
+                    .map(|_| technique_colour(primary.technique[i], primary.region(i, None))),
             };
             match colour {
                 Some(c) => Color32::from_rgba_unmultiplied(c.r(), c.g(), c.b(), alpha),
@@ -140,10 +142,19 @@ mod tests {
             legend_line(Region::Behind, true, false),
             "behind: light alone"
         );
-        // Outside every antishadow only the alpha share draws: not the light alone.
+        // Outside every antishadow only the alpha share draws: not the light alone, and the
+        // *strategy used* overlay gives it the colour of that line.
         assert_eq!(
             legend_line(Region::Outside, true, false),
             "outside: light, alpha share"
+        );
+        assert_eq!(
+            technique_colour(None, Some(Region::Outside)),
+            region_colour(Region::Outside)
+        );
+        assert_eq!(
+            technique_colour(None, Some(Region::Behind)),
+            region_colour(Region::Behind)
         );
         // Windows: the environment within the window, counted as projection.
         assert_eq!(
