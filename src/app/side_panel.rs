@@ -181,23 +181,22 @@ impl PortalViewApp {
                 None => (n > 0, !c.rendered.windows.is_empty()),
             }
         });
-        for (k, region) in Region::ALL.into_iter().enumerate() {
-            ui.horizontal(|ui| {
+        egui::Grid::new("legend").num_columns(3).show(ui, |ui| {
+            for (k, region) in Region::ALL.into_iter().enumerate() {
                 let (rect, _) =
                     ui.allocate_exact_size(egui::vec2(14.0, 14.0), egui::Sense::hover());
                 ui.painter()
                     .rect_filled(rect, 2.0, overlay::region_colour(region));
                 // The share before the name: in a panel narrower than the legend (a width
                 // remembered from an earlier session) the number stays in view. Fixed width
-                // ("100.0%" as wide as " 99.9%"), so the rows stay aligned without a grid,
-                // and a share that reaches 100% does not widen the panel, which would resize
-                // the image and restart it.
+                // ("100.0%" as wide as " 99.9%"): a share that reaches 100% must not widen
+                // the panel, which would resize the image and restart it.
                 let share = shares.map_or("   –  ".into(), |s| format!("{:>5.1}%", 100.0 * s[k]));
                 ui.label(egui::RichText::new(share).monospace());
-                // Wrapped to the panel: a grid cell would not wrap, and its end would be cut.
-                ui.add(egui::Label::new(overlay::legend_line(region, areas, windows)).wrap());
-            });
-        }
+                ui.label(overlay::legend_line(region, areas, windows));
+                ui.end_row();
+            }
+        });
     }
 
     fn statistics(&self, ui: &mut egui::Ui) {
