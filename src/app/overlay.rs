@@ -77,7 +77,7 @@ pub(crate) fn legend_line(region: Region, areas: bool, windows: bool) -> String 
 pub(crate) fn technique_name(technique: Option<Technique>, region: Option<Region>) -> &'static str {
     match (technique, region) {
         (Some(t), _) => t.name(),
-        (None, Some(Region::Outside)) => "light, alpha share",
+        (None, Some(Region::Outside)) => "light, α share",
         (None, _) => "light alone",
     }
 }
@@ -146,7 +146,7 @@ mod tests {
         // *strategy used* overlay gives it the colour of that line.
         assert_eq!(
             legend_line(Region::Outside, true, false),
-            "outside: light, alpha share"
+            "outside: light, α share"
         );
         assert_eq!(
             technique_colour(None, Some(Region::Outside)),
