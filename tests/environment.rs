@@ -383,3 +383,126 @@ fn environment_round_trips_through_gltf_scene_extras() {
     assert!(error.contains("extras.environment_strength"), "{error}");
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// A sky of radiance 1 with a 2 × 2 block of hot pixels of different radiances: the hot spot
+/// the window technique splits off, with its fill (the sky around it) exactly 1.
+fn sun_block_image(values: [f32; 4]) -> EnvImage {
+    let (width, height) = (64u32, 32u32);
+    let mut pixels = vec![Vec3::ONE; (width * height) as usize];
+    for (k, v) in values.into_iter().enumerate() {
+        let (i, j) = (20 + k as u32 % 2, 9 + k as u32 / 2);
+        pixels[(j * width + i) as usize] = Vec3::splat(v);
+    }
+    EnvImage {
+        width,
+        height,
+        pixels,
+    }
+}
+
+/// The sun split off for sampling within windows (`docs/method.md` §9.4). Its density
+/// integrates to 1 (uniform directions, within 4 standard errors) for the built-in sky turned
+/// by −20° and for a block of hot pixels; its draws stay inside the cap that holds it and have
+/// positive density; its draws pass a chi-square test against `(L − fill) · solid angle` per
+/// pixel, and fail it with two pixels' radiances swapped (the negative case); the sky without
+/// the sun (`K`) is the fill there and the image elsewhere. A smooth image and one with two
+/// suns 90° apart have no hot spot.
+#[test]
+fn the_sun_is_split_off_and_drawn_by_its_pixels() {
+    let values = [2000.0, 2600.0, 3100.0, 3500.0];
+    for (k, (image, rotation)) in [
+        (builtin::sky_image(), -20.0),
+        (sun_block_image(values), 0.0),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let (_, env) = image_env(image, rotation);
+        let (power, centre, sin_radius) = env.hot_spot().expect("a hot spot");
+        assert!(power > 0.0);
+        let mut rng = Rng::new(17, k as u64);
+        let values: Vec<f64> = (0..4_000_000)
+            .map(|_| 4.0 * PI * f64::from(env.hot_pdf(uniform_sphere(rng.uniform2()))))
+            .collect();
+        let (mean, se) = common::mean_and_se(&values);
+        assert!(
+            (mean - 1.0).abs() <= 4.0 * se,
+            "sun {k}: ∫pdf = {mean} ± {se}"
+        );
+        assert!(se < 0.05, "sun {k}: too noisy to tell ({se})");
+        let cos_radius = (1.0 - sin_radius * sin_radius).sqrt();
+        for _ in 0..20_000 {
+            let w = env.sample_hot(rng.uniform2()).expect("a draw");
+            assert!(
+                w.dot(centre) >= cos_radius - 1e-6,
+                "sun {k}: {w} outside the cap"
+            );
+            assert!(env.hot_pdf(w) > 0.0, "sun {k}: {w} drawn with density 0");
+        }
+    }
+    // The built-in sun: K is the fill on it, the image elsewhere.
+    let (_, env) = image_env(builtin::sky_image(), 0.0);
+    let sun = builtin::sky_sun_direction();
+    assert!(env.sky_weight(sun) < 0.01 * env.sampling_weight(sun));
+    assert_eq!(env.sky_weight(Vec3::Y), env.sampling_weight(Vec3::Y));
+
+    // Chi-square of the draws per hot pixel against (L − 1) times the pixel's solid angle.
+    let chi_square = |values: [f32; 4], samples: &[Vec3]| {
+        let image = sun_block_image(values);
+        let (w, h) = (image.width, image.height);
+        let (mut counts, mut outside) = ([0.0f64; 4], 0);
+        for &s in samples {
+            let (i, j) = pixel(s, 0.0, w, h);
+            match (i.checked_sub(20), j.checked_sub(9)) {
+                (Some(di @ 0..2), Some(dj @ 0..2)) => counts[(di + 2 * dj) as usize] += 1.0,
+                // f32 rounding at a pixel's edge, which must stay rare.
+                _ => outside += 1,
+            }
+        }
+        assert!(
+            outside * 10_000 < samples.len(),
+            "{outside} draws outside the sun"
+        );
+        let weights: Vec<f64> = (0..4)
+            .map(|k| {
+                let j = 9 + k / 2;
+                let omega =
+                    (PI * j as f64 / h as f64).cos() - (PI * (j + 1) as f64 / h as f64).cos();
+                (f64::from(values[k]) - 1.0) * omega
+            })
+            .collect();
+        let total: f64 = weights.iter().sum();
+        let n = samples.len() as f64;
+        weights
+            .iter()
+            .zip(counts)
+            .map(|(wt, c)| (c - n * wt / total).powi(2) / (n * wt / total))
+            .sum::<f64>()
+    };
+    let (_, env) = image_env(sun_block_image(values), 0.0);
+    let mut rng = Rng::new(19, 20);
+    let samples: Vec<Vec3> = (0..200_000)
+        .filter_map(|_| env.sample_hot(rng.uniform2()))
+        .collect();
+    // Three degrees of freedom: 16.27 is the 1e-3 critical value.
+    let chi2 = chi_square(values, &samples);
+    assert!(chi2 <= 16.27, "chi² {chi2}");
+    let swapped = [values[3], values[1], values[2], values[0]];
+    let chi2 = chi_square(swapped, &samples);
+    assert!(chi2 > 16.27, "swapped pixels went undetected: chi² {chi2}");
+
+    // No hot spot: a smooth image, and two suns too far apart for one cap.
+    let smooth = EnvImage {
+        width: 32,
+        height: 16,
+        pixels: (0..512)
+            .map(|k| Vec3::splat(1.0 + (k / 32) as f32))
+            .collect(),
+    };
+    assert!(image_env(smooth, 0.0).1.hot_spot().is_none());
+    let mut two = sun_block_image([3000.0; 4]);
+    for j in 9..11 {
+        two.pixels[(j * 64 + 36) as usize] = Vec3::splat(3000.0);
+    }
+    assert!(image_env(two, 0.0).1.hot_spot().is_none());
+}

@@ -38,7 +38,37 @@ enum Map {
         rows: Distribution1D,
         /// Each row's pixels by weight.
         columns: Vec<Distribution1D>,
+        /// The sun, if the image has one, split off for the window technique.
+        hot: Option<HotSpot>,
     },
+}
+
+/// A pixel is hot when its weight exceeds this multiple of the image's solid-angle mean.
+const HOT_RATIO: f32 = 100.0;
+/// The hot pixels are split off only if they lie within a cap of this radius (radians) and hold
+/// at least [`HOT_MIN_SHARE`] of the image's weight: one compact sun, which a window either
+/// shows or does not from most points.
+const HOT_MAX_RADIUS: f32 = 0.25;
+const HOT_MIN_SHARE: f32 = 0.05;
+
+/// The environment's sun, as the window technique sees it (`docs/method.md` §9.4): the image
+/// is split as `L = K + S`, where `K` is `L` with each hot pixel replaced by `fill`, the mean of
+/// the pixels around them (a sky with no sun in it, which a window's table follows without a
+/// jump), and `S = L − fill` on the hot pixels, drawn exactly pixel by pixel.
+#[derive(Clone, Debug)]
+struct HotSpot {
+    /// A pixel is hot when its sampling weight is above this.
+    threshold: f32,
+    /// `K` on the hot pixels.
+    fill: Vec3,
+    /// Hot pixel indices `j · width + i`, and a pick among them by `S`'s weight × solid angle.
+    pixels: Vec<u32>,
+    pick: Distribution1D,
+    /// `∫ weight(S) dω` (before the strength).
+    power: f32,
+    /// A cap in the map's frame holding every hot pixel: its centre and the sine of its radius.
+    centre: Vec3,
+    sin_radius: f32,
 }
 
 /// The weight a pixel gets in the sampling distribution: its mean channel, positive wherever
@@ -180,6 +210,7 @@ impl Environment {
                 pixels,
                 rows,
                 columns,
+                ..
             } => {
                 let m = self.to_map(w);
                 let (i, j) = pixel_of(m, *width, *height);
@@ -201,6 +232,87 @@ impl Environment {
     pub fn sampling_weight(&self, w: Vec3) -> f32 {
         sampling_weight(self.radiance(w))
     }
+
+    /// The weight of the environment without its sun, `K` (`L` where the image has no hot spot):
+    /// what a window's table follows.
+    pub fn sky_weight(&self, w: Vec3) -> f32 {
+        let le = self.radiance(w);
+        match self.hot() {
+            Some(hot) if sampling_weight(le) > hot.threshold * self.strength => {
+                sampling_weight(hot.fill) * self.strength
+            }
+            _ => sampling_weight(le),
+        }
+    }
+
+    fn hot(&self) -> Option<&HotSpot> {
+        match &self.map {
+            Map::Image { hot, .. } => hot.as_ref(),
+            Map::Constant(_) => None,
+        }
+    }
+
+    /// The sun's power `∫ weight(S) dω` in the units of [`Self::sky_weight`]'s integrals, and
+    /// the cap that holds it (world centre, sine of its radius); `None` without a hot spot.
+    pub fn hot_spot(&self) -> Option<(f32, Vec3, f32)> {
+        self.hot().map(|h| {
+            (
+                h.power * self.strength,
+                self.to_world(h.centre),
+                h.sin_radius,
+            )
+        })
+    }
+
+    /// A direction drawn proportional to `S` (a hot pixel by its weight × solid angle, then
+    /// uniform in its solid angle); its density is [`Self::hot_pdf`].
+    #[inline(always)]
+    pub fn sample_hot(&self, u: Vec2) -> Option<Vec3> {
+        let Map::Image {
+            width,
+            height,
+            hot: Some(hot),
+            ..
+        } = &self.map
+        else {
+            return None;
+        };
+        let (k, _, u_in) = hot.pick.sample(u.x)?;
+        let index = *hot.pixels.get(k)?;
+        let (i, j) = (index % width, index / width);
+        let phi = TAU * ((i as f32 + u_in) / *width as f32 - 0.5);
+        let (z0, z1) = row_cosines(j, *height);
+        let z = z0 + u.y * (z1 - z0);
+        let r = (1.0 - z * z).max(0.0).sqrt();
+        let (sin_phi, cos_phi) = phi.sin_cos();
+        Some(self.to_world(Vec3::new(r * cos_phi, z, r * sin_phi)))
+    }
+
+    /// The solid-angle density of [`Self::sample_hot`] at `w`: `weight(S) / power` on a hot
+    /// pixel, else 0 (also without a hot spot).
+    pub fn hot_pdf(&self, w: Vec3) -> f32 {
+        self.radiance_pdfs(w).2
+    }
+
+    /// [`Self::radiance_pdf`] and [`Self::hot_pdf`] from one pixel lookup.
+    #[inline(always)]
+    pub fn radiance_pdfs(&self, w: Vec3) -> (Vec3, f32, f32) {
+        let (le, p_env) = self.radiance_pdf(w);
+        let p_hot = match self.hot() {
+            Some(hot) if sampling_weight(le) > hot.threshold * self.strength => {
+                let excess = sampling_weight(le) / self.strength - sampling_weight(hot.fill);
+                (excess / hot.power).max(0.0)
+            }
+            _ => 0.0,
+        };
+        (le, p_env, p_hot)
+    }
+}
+
+/// `(cos θ0, cos θ1)` at the top and bottom of row `j` (decreasing: θ grows down the image).
+fn row_cosines(j: u32, height: u32) -> (f32, f32) {
+    let theta = |j: u32| PI * j as f32 / height as f32;
+    (theta(j).cos(), theta(j + 1).cos())
 }
 
 /// The pixel (column, row) a map direction falls in.
@@ -239,9 +351,103 @@ fn image_map(image: &EnvImage) -> (Map, f32) {
             pixels: image.pixels.clone(),
             rows: Distribution1D::new(row_weights),
             columns,
+            hot: hot_spot(image),
         },
         mean,
     )
+}
+
+/// The image's sun: the pixels above [`HOT_RATIO`] times the mean weight, if they are compact
+/// and hold enough of it ([`HotSpot`]).
+fn hot_spot(image: &EnvImage) -> Option<HotSpot> {
+    let (w, h) = (image.width, image.height);
+    let solid_angle = |j: u32| {
+        let (z0, z1) = row_cosines(j, h);
+        (TAU / w as f32) * (z0 - z1)
+    };
+    let weight_of = |i: u32, j: u32| sampling_weight(image.pixel(i, j));
+    let mut total = 0.0f64;
+    for j in 0..h {
+        let omega = f64::from(solid_angle(j));
+        total += (0..w)
+            .map(|i| f64::from(weight_of(i, j)) * omega)
+            .sum::<f64>();
+    }
+    let threshold = HOT_RATIO * (total / (4.0 * std::f64::consts::PI)) as f32;
+    if !(threshold > 0.0 && threshold.is_finite()) {
+        return None;
+    }
+    let hot = |i: u32, j: u32| weight_of(i, j) > threshold;
+    let pixels: Vec<u32> = (0..h)
+        .flat_map(|j| (0..w).map(move |i| (i, j)))
+        .filter(|&(i, j)| hot(i, j))
+        .map(|(i, j)| j * w + i)
+        .collect();
+    if pixels.is_empty() {
+        return None;
+    }
+    // `fill`: the mean of the pixels next to a hot one (the sky around the sun).
+    let (mut fill, mut around) = (Vec3::ZERO, 0u32);
+    for &p in &pixels {
+        let (i, j) = (p % w, p / w);
+        let neighbours = [
+            ((i + w - 1) % w, j),
+            ((i + 1) % w, j),
+            (i, j.saturating_sub(1)),
+            (i, (j + 1).min(h - 1)),
+        ];
+        for (a, b) in neighbours {
+            if !hot(a, b) {
+                fill += image.pixel(a, b);
+                around += 1;
+            }
+        }
+    }
+    let fill = if around > 0 {
+        fill / around as f32
+    } else {
+        Vec3::ZERO
+    };
+    let excess = |p: u32| (weight_of(p % w, p / w) - sampling_weight(fill)).max(0.0);
+    let pick = Distribution1D::new(pixels.iter().map(|&p| excess(p) * solid_angle(p / w)));
+    let power = pick.total();
+    // The cap: about the weighted mean of the pixels' centres, out to their farthest corner.
+    let direction = |u: f32, v: f32| {
+        let (sin_theta, cos_theta) = (PI * v).sin_cos();
+        let (sin_phi, cos_phi) = (TAU * (u - 0.5)).sin_cos();
+        Vec3::new(sin_theta * cos_phi, cos_theta, sin_theta * sin_phi)
+    };
+    let centre = pixels
+        .iter()
+        .map(|&p| {
+            let (i, j) = (p % w, p / w);
+            direction((i as f32 + 0.5) / w as f32, (j as f32 + 0.5) / h as f32)
+                * excess(p)
+                * solid_angle(j)
+        })
+        .sum::<Vec3>()
+        .try_normalize()?;
+    let cos_radius = pixels
+        .iter()
+        .flat_map(|&p| {
+            let (i, j) = (p % w, p / w);
+            [(0, 0), (1, 0), (0, 1), (1, 1)]
+                .map(|(di, dj)| direction((i + di) as f32 / w as f32, (j + dj) as f32 / h as f32))
+        })
+        .map(|d| d.dot(centre))
+        .fold(1.0f32, f32::min);
+    // A row's height on top: a pixel's sides along its rows bulge past its corners.
+    let radius = cos_radius.clamp(-1.0, 1.0).acos() + PI / h as f32;
+    let share = f64::from(power) / total;
+    (radius <= HOT_MAX_RADIUS && share >= f64::from(HOT_MIN_SHARE)).then(|| HotSpot {
+        threshold,
+        fill,
+        pixels,
+        pick,
+        power,
+        centre,
+        sin_radius: radius.sin(),
+    })
 }
 
 #[cfg(test)]

@@ -215,6 +215,9 @@ pub struct GuidedBox {
     alpha_cells: [(usize, f64); 2],
     beta_cells: [(usize, f64); 2],
     integral: f64,
+    /// Whether the box reads the window's table of the sky without its sun
+    /// ([`crate::light::window::Window::guided_box_split`]).
+    pub(crate) sunless: bool,
 }
 
 impl GuidedBox {
@@ -222,6 +225,11 @@ impl GuidedBox {
     /// window's bounding box, seen from x).
     pub fn integral(&self) -> f64 {
         self.integral
+    }
+
+    /// Whether the box reads the table of the environment without its sun.
+    pub fn is_sunless(&self) -> bool {
+        self.sunless
     }
 }
 
@@ -434,6 +442,7 @@ impl GuidedTable {
             alpha_cells,
             beta_cells,
             integral,
+            sunless: false,
         })
     }
 

@@ -77,6 +77,12 @@ pub struct WindowTerm {
     pub spherical: Option<SphericalPolygon>,
     /// The window's box in the guided parameterisation (guided technique).
     pub guided: Option<GuidedBox>,
+    /// Guided technique: the probability that it draws the environment's sun
+    /// ([`Environment::sample_hot`](super::environment::Environment::sample_hot)) rather than
+    /// the window's table, `A / (A + B)` (`docs/method.md` §9.4): `A` the sun's power where
+    /// the whole sun shows through the window from `x` (the box then reads the table of the
+    /// sky without it), else 0; `B` the box's table integral.
+    pub hot_share: f32,
 }
 
 /// What the estimator knows about the environment at one shading point.
@@ -172,6 +178,10 @@ impl SkySampler {
         if !ctx.has_windows {
             return;
         }
+        let sun_power = scene
+            .environment()
+            .and_then(|e| e.hot_spot())
+            .map_or(0.0, |(power, _, _)| power);
         let in_front = windows.iter().enumerate().filter(|(_, w)| w.in_front(x));
         let several = windows.iter().filter(|w| w.in_front(x)).count() > 1;
         for (j, window) in in_front.take(MAX_TERMS) {
@@ -188,6 +198,7 @@ impl SkySampler {
                     weight: 1.0,
                     spherical: None,
                     guided: None,
+                    hot_share: 0.0,
                 })
                 .is_err()
             {
@@ -196,8 +207,25 @@ impl SkySampler {
             let Some(term) = ctx.terms.last_mut() else {
                 break;
             };
+            // The guided technique's weight `A + B` (see `WindowTerm::hot_share`).
+            let mut guided_weight = 0.0;
             if technique == SkyTechnique::Guided {
-                term.guided = window.guided_box(x);
+                // Where the whole sun shows through the window, the table of the sky without
+                // it and the sun drawn on its own; elsewhere the table of the whole sky.
+                term.guided = window.guided_box_split(x);
+                if let Some(b) = &term.guided {
+                    let sky = b.integral() as f32;
+                    let sun = match b.is_sunless() {
+                        true => sun_power,
+                        false => 0.0,
+                    };
+                    guided_weight = sky + sun;
+                    term.hot_share = if guided_weight > 0.0 {
+                        sun / guided_weight
+                    } else {
+                        0.0
+                    };
+                }
             }
             if technique == SkyTechnique::SolidAngle
                 || (several && technique != SkyTechnique::Guided)
@@ -209,9 +237,7 @@ impl SkySampler {
                 // (its table integral), so that the window that sees the sun gets the samples;
                 // the others by solid angle. Either depends on x alone.
                 term.weight = match technique {
-                    SkyTechnique::Guided => {
-                        term.guided.as_ref().map_or(0.0, |b| b.integral() as f32)
-                    }
+                    SkyTechnique::Guided => guided_weight,
                     _ => term.spherical.as_ref().map_or(0.0, |q| q.solid_angle()),
                 };
             }
@@ -265,8 +291,8 @@ impl SkySampler {
     ) -> Option<SkySample> {
         let env = scene.environment()?;
         let x = ctx.x;
-        let (technique, drawn, (wi, technique_pdf)) = match from_environment {
-            true => (SkyTechnique::Environment, None, env.sample(u)?),
+        let (drawn, (wi, own_pdf)) = match from_environment {
+            true => (None, env.sample(u)?),
             false => {
                 let term = pick_by_weight(&ctx.terms, |t| t.weight, u_technique)?;
                 let window = &scene.windows()[term.window];
@@ -274,13 +300,30 @@ impl SkySampler {
                     SkyTechnique::Environment => env.sample(u)?,
                     SkyTechnique::WindowArea => window.sample_area(x, u)?,
                     SkyTechnique::SolidAngle => term.spherical.as_ref()?.sample(u)?,
-                    SkyTechnique::Guided => window.sample_guided(term.guided.as_ref()?, x, u)?,
+                    SkyTechnique::Guided => {
+                        // The sun or the table, by `u.x` again (stratified like the shares);
+                        // either way `own_pdf` is the table's density, the sun's added below.
+                        let b = term.guided.as_ref()?;
+                        match split_share(u, term.hot_share) {
+                            (true, u) => {
+                                let wi = env.sample_hot(u)?;
+                                (wi, window.guided_pdf(b, x, wi))
+                            }
+                            (false, u) => window.sample_guided(b, x, u)?,
+                        }
+                    }
                 };
-                (term.technique, Some(term.window), sampled)
+                (Some(term), sampled)
             }
         };
-        // One pixel lookup gives the radiance and the environment's density.
-        let (le, p_env) = env.radiance_pdf(wi);
+        // One pixel lookup gives the radiance and the environment's and its sun's densities.
+        let (le, p_env, p_hot) = env.radiance_pdfs(wi);
+        let technique = drawn.map_or(SkyTechnique::Environment, |t| t.technique);
+        let technique_pdf = match drawn {
+            Some(t) if t.technique == SkyTechnique::Guided => hot_mixture(t, own_pdf, p_hot),
+            _ => own_pdf,
+        };
+        let drawn = drawn.map(|t| t.window);
         let pdf = if ctx.uses_windows {
             let windows: f32 = ctx
                 .terms
@@ -289,7 +332,7 @@ impl SkySampler {
                     let p = if Some(t.window) == drawn {
                         technique_pdf
                     } else {
-                        window_term_pdf(scene, x, t, p_env, wi)
+                        window_term_pdf(scene, x, t, p_env, p_hot, wi)
                     };
                     t.weight * p
                 })
@@ -313,25 +356,27 @@ impl SkySampler {
         let Some(env) = scene.environment() else {
             return 0.0;
         };
-        let p_env = env.pdf(wi);
         if !ctx.uses_windows {
-            return p_env;
+            return env.pdf(wi);
         }
+        let (_, p_env, p_hot) = env.radiance_pdfs(wi);
         let windows: f32 = ctx
             .terms
             .iter()
-            .map(|t| t.weight * window_term_pdf(scene, ctx.x, t, p_env, wi))
+            .map(|t| t.weight * window_term_pdf(scene, ctx.x, t, p_env, p_hot, wi))
             .sum();
         ctx.alpha * p_env + (1.0 - ctx.alpha) * windows
     }
 }
 
-/// `p_{s_j}(wi | x)`: one window term's technique density (`p_env` is `p_env(wi)`).
+/// `p_{s_j}(wi | x)`: one window term's technique density (`p_env` is `p_env(wi)`, `p_hot`
+/// the sun's [`Environment::hot_pdf`](super::environment::Environment::hot_pdf) at `wi`).
 pub fn window_term_pdf(
     scene: &impl LightSet,
     x: Vec3,
     term: &WindowTerm,
     p_env: f32,
+    p_hot: f32,
     wi: Vec3,
 ) -> f32 {
     let window: &Window = &scene.windows()[term.window];
@@ -339,9 +384,24 @@ pub fn window_term_pdf(
         SkyTechnique::Environment => p_env,
         SkyTechnique::WindowArea => window.area_pdf(x, wi),
         SkyTechnique::SolidAngle => term.spherical.as_ref().map_or(0.0, |q| q.pdf(wi)),
-        SkyTechnique::Guided => term
-            .guided
-            .as_ref()
-            .map_or(0.0, |b| window.guided_pdf(b, x, wi)),
+        SkyTechnique::Guided => {
+            let table = term
+                .guided
+                .as_ref()
+                .map_or(0.0, |b| window.guided_pdf(b, x, wi));
+            hot_mixture(term, table, p_hot)
+        }
+    }
+}
+
+/// The guided technique's density: the sun's share `hot_share` at the sun's density, the rest
+/// at the table's. With `A`, `B` as in [`WindowTerm::hot_share`] this is
+/// `(weight(S) + weight(K)) / (A + B) = weight(L) / (A + B)`, the environment within the window.
+#[inline(always)]
+fn hot_mixture(term: &WindowTerm, p_table: f32, p_hot: f32) -> f32 {
+    if term.hot_share > 0.0 {
+        term.hot_share * p_hot + (1.0 - term.hot_share) * p_table
+    } else {
+        p_table
     }
 }

@@ -42,7 +42,31 @@ pub struct Window {
     /// The environment's weight over the window's directions, when there is an image to follow;
     /// shared with the window it was built for when an edit only moves or scales the window.
     guided: Option<Arc<GuidedTable>>,
+    /// The same for the environment without its sun (`docs/method.md` §9.4), when it has one:
+    /// used where the whole sun shows through the window, the sun then drawn on its own.
+    sunless: Option<Arc<GuidedTable>>,
+    /// The environment's sun as the window's frame sees it, when it has one that can show
+    /// through the window's side.
+    sun: Option<SunView>,
 }
+
+/// The environment's sun in a window's frame (`docs/method.md` §9.4): its cap, and the
+/// bounding box of the cap's directions in `(α, β)`, which does not depend on the point. Seen
+/// from `x`, the window is the box `B(x)` in these coordinates (a rectangle exactly, any other
+/// window within it), so a sun box inside `B(x)` is the first test of whether the whole sun
+/// shows, and for a rectangle the only one.
+#[derive(Clone, Copy, Debug)]
+struct SunView {
+    centre: Vec3,
+    sin_radius: f32,
+    /// `[α_0, α_1, β_0, β_1]`.
+    bounds: [f64; 4],
+}
+
+/// Points on the cap's rim for its box; between them the rim bulges past their box by less
+/// than `1 − cos(π / 256)` of its extent, covered by widening the box by [`SUN_BOX_MARGIN`] of it.
+const SUN_RIM_POINTS: usize = 256;
+const SUN_BOX_MARGIN: f64 = 1e-3;
 
 /// Axes of the window's parameterisation: `s`, `t` in its plane, `out = −normal` through it.
 #[derive(Clone, Copy, Debug)]
@@ -115,12 +139,16 @@ impl Window {
             let close = |a: DVec3, b: DVec3| a.dot(b) > 1.0 - 1e-9;
             close(w.frame.s, frame.s) && close(w.frame.t, frame.t) && close(w.frame.out, frame.out)
         };
-        let guided = environment.filter(|e| !e.is_constant()).and_then(|_| {
-            built
-                .iter()
-                .filter(same_axes)
-                .find_map(|w| w.guided.clone())
-        });
+        let same = environment
+            .filter(|e| !e.is_constant())
+            .and_then(|_| built.iter().filter(same_axes).find(|w| w.guided.is_some()));
+        let (guided, sunless) = match same {
+            Some(w) => (w.guided.clone(), w.sunless.clone()),
+            None => (None, None),
+        };
+        let sun = environment
+            .and_then(|e| e.hot_spot())
+            .and_then(|(_, centre, sin_radius)| SunView::new(&frame, centre, sin_radius));
         Ok(Window {
             name: desc.name.clone(),
             desc_index,
@@ -128,6 +156,8 @@ impl Window {
             polygon,
             frame,
             guided,
+            sunless,
+            sun,
         })
     }
 
@@ -144,10 +174,13 @@ impl Window {
             return;
         };
         let frame = self.frame;
-        self.guided = Some(Arc::new(GuidedTable::new(
-            |a, b| frame.direction(a, b).as_vec3(),
-            |w| e.sampling_weight(w),
-        )));
+        let direction = |a, b| frame.direction(a, b).as_vec3();
+        self.guided = Some(Arc::new(GuidedTable::new(direction, |w| {
+            e.sampling_weight(w)
+        })));
+        self.sunless = e
+            .hot_spot()
+            .map(|_| Arc::new(GuidedTable::new(direction, |w| e.sky_weight(w))));
     }
 
     /// Whether `x` is strictly in front of the window (on the room's side).
@@ -195,11 +228,73 @@ impl Window {
         SphericalPolygon::new(x, self.polygon.vertices())
     }
 
+    /// Whether the whole cap about the unit `centre` with radius `asin(sin_radius)` (below 90°)
+    /// passes through the window from `x` (in front): it lies inside every plane through `x`
+    /// and an edge, which bound the window's directions. For a counter-clockwise polygon seen
+    /// from its front, `(b − x) × (a − x)` is edge `ab`'s plane's normal towards the inside;
+    /// the cap is inside when `centre · n ≥ sin_radius · |n|`.
+    fn holds_cap(&self, x: Vec3, centre: Vec3, sin_radius: f32) -> bool {
+        let sin2 = sin_radius * sin_radius;
+        cyclic_pairs(self.polygon.vertices()).all(|(a, b)| {
+            let n = (b - x).cross(a - x);
+            let d = centre.dot(n);
+            d >= 0.0 && d * d >= sin2 * n.length_squared()
+        })
+    }
+
     /// The box of the window's directions from `x` in `(α, β)` and the table's integral over
     /// it; `None` without a table, or for `x` not in front.
     #[inline(always)]
     pub fn guided_box(&self, x: Vec3) -> Option<GuidedBox> {
-        let table = self.guided.as_ref()?;
+        self.box_in(self.guided.as_deref()?, x)
+    }
+
+    /// [`Self::guided_box`], but where the environment's whole sun shows through the window
+    /// from `x`, in the table of the environment without it, marked `sunless` (the sun is then
+    /// drawn on its own). Whether it shows only changes the variance: either table gives an
+    /// exact technique. The sun's box inside the window's decides it for a rectangle; another
+    /// window also tests the sun's cap against its edges.
+    #[inline(always)]
+    pub fn guided_box_split(&self, x: Vec3) -> Option<GuidedBox> {
+        let (alpha, beta) = self.box_coordinates(x)?;
+        let shows_sun = self.sun.as_ref().is_some_and(|sun| {
+            let [a0, a1, b0, b1] = sun.bounds;
+            alpha[0] <= a0
+                && a1 <= alpha[1]
+                && beta[0] <= b0
+                && b1 <= beta[1]
+                && (self.frame.fills_box || self.holds_cap(x, sun.centre, sun.sin_radius))
+        });
+        match (shows_sun, self.sunless.as_deref()) {
+            (true, Some(table)) => {
+                let mut b = table.guided_box(alpha, beta)?;
+                b.sunless = true;
+                Some(b)
+            }
+            _ => self.guided.as_deref()?.guided_box(alpha, beta),
+        }
+    }
+
+    /// The table a box reads.
+    #[inline(always)]
+    fn table_of(&self, b: &GuidedBox) -> Option<&GuidedTable> {
+        if b.sunless {
+            self.sunless.as_deref()
+        } else {
+            self.guided.as_deref()
+        }
+    }
+
+    #[inline(always)]
+    fn box_in(&self, table: &GuidedTable, x: Vec3) -> Option<GuidedBox> {
+        let (alpha, beta) = self.box_coordinates(x)?;
+        table.guided_box(alpha, beta)
+    }
+
+    /// The window's box from `x` in `(α, β)`: `([α_0, α_1], [β_0, β_1])`; `None` for `x` not in
+    /// front.
+    #[inline(always)]
+    fn box_coordinates(&self, x: Vec3) -> Option<([f64; 2], [f64; 2])> {
         let f = &self.frame;
         let rel = x.as_dvec3() - f.centre;
         let h = -rel.dot(f.out);
@@ -210,7 +305,7 @@ impl Window {
         let [s0, s1, t0, t1] = f.bounds;
         let alpha = [coordinate((s0 - xs) / h), coordinate((s1 - xs) / h)];
         let beta = [coordinate((t0 - xt) / h), coordinate((t1 - xt) / h)];
-        table.guided_box(alpha, beta)
+        Some((alpha, beta))
     }
 
     /// A direction through the window drawn proportional to the table within the box, with its
@@ -220,7 +315,7 @@ impl Window {
     /// fills its box ([`Self::fills_box`]) skips the inside test: its support is the box.
     #[inline(always)]
     pub fn sample_guided(&self, b: &GuidedBox, x: Vec3, u: Vec2) -> Option<(Vec3, f32)> {
-        let table = self.guided.as_ref()?;
+        let table = self.table_of(b)?;
         let (alpha, beta, weight) = table.sample(b, [f64::from(u.x), f64::from(u.y)])?;
         let (ta, tb) = (gnomonic(alpha), gnomonic(beta));
         let f = &self.frame;
@@ -235,7 +330,7 @@ impl Window {
     /// The solid-angle pdf of [`Self::sample_guided`] for `wi`: 0 unless it passes through the
     /// window (through the box, for a window that fills it).
     pub fn guided_pdf(&self, b: &GuidedBox, x: Vec3, wi: Vec3) -> f32 {
-        let Some(table) = self.guided.as_ref() else {
+        let Some(table) = self.table_of(b) else {
             return 0.0;
         };
         let f = &self.frame;
@@ -257,6 +352,54 @@ impl Window {
         let alpha = alpha.clamp(b.alpha[0], b.alpha[1]);
         let beta = beta.clamp(b.beta[0], b.beta[1]);
         (table.density(alpha, beta) / (b.integral() * jacobian(ta, tb))) as f32
+    }
+}
+
+impl SunView {
+    /// The cap about the unit world `centre` with radius `asin(sin_radius)` in `frame`; `None`
+    /// if part of it faces away from the window's outside (`ω · out ≤ 0`), where no point in
+    /// front sees it through the window.
+    fn new(frame: &WindowFrame, centre: Vec3, sin_radius: f32) -> Option<SunView> {
+        let c = centre.as_dvec3();
+        let sin_r = f64::from(sin_radius);
+        let cos_r = (1.0 - sin_r * sin_r).max(0.0).sqrt();
+        // The cap lies on the outside when its centre is more than its radius from the plane.
+        if c.dot(frame.out) <= sin_r + 1e-6 {
+            return None;
+        }
+        let u = c.any_orthonormal_vector();
+        let v = c.cross(u);
+        let mut bounds = [
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+        ];
+        for k in 0..SUN_RIM_POINTS {
+            let phi = std::f64::consts::TAU * k as f64 / SUN_RIM_POINTS as f64;
+            let d = cos_r * c + sin_r * (phi.cos() * u + phi.sin() * v);
+            let dz = d.dot(frame.out);
+            let (a, b) = (d.dot(frame.s) / dz, d.dot(frame.t) / dz);
+            bounds = [
+                bounds[0].min(a),
+                bounds[1].max(a),
+                bounds[2].min(b),
+                bounds[3].max(b),
+            ];
+        }
+        let (wa, wb) = (bounds[1] - bounds[0], bounds[3] - bounds[2]);
+        let [a0, a1, b0, b1] = bounds;
+        let margin = |w: f64| SUN_BOX_MARGIN * w + 1e-9;
+        Some(SunView {
+            centre,
+            sin_radius,
+            bounds: [
+                coordinate(a0 - margin(wa)),
+                coordinate(a1 + margin(wa)),
+                coordinate(b0 - margin(wb)),
+                coordinate(b1 + margin(wb)),
+            ],
+        })
     }
 }
 
