@@ -355,6 +355,19 @@ impl Window {
     }
 }
 
+/// `[a_min, a_max, b_min, b_max]` of the points `(a, b)`.
+fn bounding_box(points: impl Iterator<Item = (f64, f64)>) -> [f64; 4] {
+    let empty = [
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+    ];
+    points.fold(empty, |[a0, a1, b0, b1], (a, b)| {
+        [a0.min(a), a1.max(a), b0.min(b), b1.max(b)]
+    })
+}
+
 impl SunView {
     /// The cap about the unit world `centre` with radius `asin(sin_radius)` in `frame`; `None`
     /// if part of it faces away from the window's outside (`ω · out ≤ 0`), where no point in
@@ -369,24 +382,12 @@ impl SunView {
         }
         let u = c.any_orthonormal_vector();
         let v = c.cross(u);
-        let mut bounds = [
-            f64::INFINITY,
-            f64::NEG_INFINITY,
-            f64::INFINITY,
-            f64::NEG_INFINITY,
-        ];
-        for k in 0..SUN_RIM_POINTS {
+        let bounds = bounding_box((0..SUN_RIM_POINTS).map(|k| {
             let phi = std::f64::consts::TAU * k as f64 / SUN_RIM_POINTS as f64;
             let d = cos_r * c + sin_r * (phi.cos() * u + phi.sin() * v);
             let dz = d.dot(frame.out);
-            let (a, b) = (d.dot(frame.s) / dz, d.dot(frame.t) / dz);
-            bounds = [
-                bounds[0].min(a),
-                bounds[1].max(a),
-                bounds[2].min(b),
-                bounds[3].max(b),
-            ];
-        }
+            (d.dot(frame.s) / dz, d.dot(frame.t) / dz)
+        }));
         let (wa, wb) = (bounds[1] - bounds[0], bounds[3] - bounds[2]);
         let [a0, a1, b0, b1] = bounds;
         let margin = |w: f64| SUN_BOX_MARGIN * w + 1e-9;
@@ -418,21 +419,11 @@ impl WindowFrame {
                 continue;
             };
             let t = out.cross(s);
-            let mut bounds = [
-                f64::INFINITY,
-                f64::NEG_INFINITY,
-                f64::INFINITY,
-                f64::NEG_INFINITY,
-            ];
-            for v in &vertices {
-                let (ps, pt) = ((v - centre).dot(s), (v - centre).dot(t));
-                bounds = [
-                    bounds[0].min(ps),
-                    bounds[1].max(ps),
-                    bounds[2].min(pt),
-                    bounds[3].max(pt),
-                ];
-            }
+            let bounds = bounding_box(
+                vertices
+                    .iter()
+                    .map(|v| ((v - centre).dot(s), (v - centre).dot(t))),
+            );
             let area = (bounds[1] - bounds[0]) * (bounds[3] - bounds[2]);
             if best.as_ref().is_none_or(|(a, _)| area < *a) {
                 best = Some((
