@@ -202,8 +202,15 @@ impl Environment {
     /// [`Self::radiance`] and [`Self::pdf`] at once, from one pixel lookup.
     #[inline(always)]
     pub fn radiance_pdf(&self, w: Vec3) -> (Vec3, f32) {
+        let (pixel, pdf) = self.pixel_pdf(w);
+        (pixel * self.strength, pdf)
+    }
+
+    /// The map's value along `w` before the strength, and [`Self::pdf`].
+    #[inline(always)]
+    fn pixel_pdf(&self, w: Vec3) -> (Vec3, f32) {
         match &self.map {
-            Map::Constant(c) => (*c * self.strength, 1.0 / (4.0 * PI)),
+            Map::Constant(c) => (*c, 1.0 / (4.0 * PI)),
             Map::Image {
                 width,
                 height,
@@ -214,7 +221,7 @@ impl Environment {
             } => {
                 let m = self.to_map(w);
                 let (i, j) = pixel_of(m, *width, *height);
-                let le = pixels[(j * width + i) as usize] * self.strength;
+                let le = pixels[(j * width + i) as usize];
                 let sin_theta = (m.x * m.x + m.z * m.z).sqrt();
                 if sin_theta <= 0.0 {
                     return (le, 0.0);
@@ -236,13 +243,12 @@ impl Environment {
     /// The weight of the environment without its sun, `K` (`L` where the image has no hot spot):
     /// what a window's table follows.
     pub fn sky_weight(&self, w: Vec3) -> f32 {
-        let le = self.radiance(w);
-        match self.hot() {
-            Some(hot) if sampling_weight(le) > hot.threshold * self.strength => {
-                sampling_weight(hot.fill) * self.strength
-            }
-            _ => sampling_weight(le),
-        }
+        let pixel = self.pixel_pdf(w).0;
+        let k = match self.hot() {
+            Some(hot) if sampling_weight(pixel) > hot.threshold => hot.fill,
+            _ => pixel,
+        };
+        sampling_weight(k) * self.strength
     }
 
     fn hot(&self) -> Option<&HotSpot> {
@@ -297,15 +303,16 @@ impl Environment {
     /// [`Self::radiance_pdf`] and [`Self::hot_pdf`] from one pixel lookup.
     #[inline(always)]
     pub fn radiance_pdfs(&self, w: Vec3) -> (Vec3, f32, f32) {
-        let (le, p_env) = self.radiance_pdf(w);
+        let (pixel, p_env) = self.pixel_pdf(w);
+        // The same test on the same value as when the hot pixels were picked out.
         let p_hot = match self.hot() {
-            Some(hot) if sampling_weight(le) > hot.threshold * self.strength => {
-                let excess = sampling_weight(le) / self.strength - sampling_weight(hot.fill);
+            Some(hot) if sampling_weight(pixel) > hot.threshold => {
+                let excess = sampling_weight(pixel) - sampling_weight(hot.fill);
                 (excess / hot.power).max(0.0)
             }
             _ => 0.0,
         };
-        (le, p_env, p_hot)
+        (pixel * self.strength, p_env, p_hot)
     }
 }
 
