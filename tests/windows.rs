@@ -816,7 +816,7 @@ fn a_window_awaiting_its_table_is_sampled_by_solid_angle_without_bias() {
 fn the_sky_mixture_with_the_sun_split_off_is_consistent() {
     for name in ["window", "windows2"] {
         let scene = Scene::open(name).unwrap();
-        let env = portalview::light::LightSet::environment(&scene).unwrap();
+        let env = scene.environment.clone().unwrap();
         // Floor points, the first few with the sun split off and the first few without.
         let sampler = SkySampler::new(&scene, Strategy::Antishadow, None);
         let (mut split, mut whole) = (Vec::new(), Vec::new());
@@ -860,7 +860,8 @@ fn the_sky_mixture_with_the_sun_split_off_is_consistent() {
                 // ∫ q dω = E[q / g] under draws from g: half environment sampling (positive
                 // everywhere), half uniform in the solid angle of a window in front (where q
                 // is large); without the sun's part the integral falls short by its share.
-                let cones: Vec<_> = portalview::light::LightSet::windows(&scene)
+                let cones: Vec<_> = scene
+                    .windows
                     .iter()
                     .filter_map(|w| w.solid_angle(x))
                     .collect();
@@ -881,22 +882,22 @@ fn the_sky_mixture_with_the_sun_split_off_is_consistent() {
                     let Some(w) = drawn else {
                         continue;
                     };
-                    let p_env = g(w);
+                    let g_w = g(w);
                     let q = sampler.pdf(&scene, &ctx, w);
                     let sun: f32 = ctx
                         .terms
                         .iter()
                         .map(|t| t.weight * t.hot_share * env.hot_pdf(w))
                         .sum();
-                    with_sun.push(f64::from(q / p_env));
-                    without.push(f64::from((q - (1.0 - alpha) * sun) / p_env));
+                    with_sun.push(f64::from(q / g_w));
+                    without.push(f64::from((q - (1.0 - alpha) * sun) / g_w));
                 }
                 // A window that does not fill its box has a sub-probability guided density
                 // (its acceptance rate, checked above per technique): 1 is the rectangles'.
                 let rectangles = ctx
                     .terms
                     .iter()
-                    .all(|t| portalview::light::LightSet::windows(&scene)[t.window].fills_box());
+                    .all(|t| scene.windows[t.window].fills_box());
                 let (mean, se) = common::mean_and_se(&with_sun);
                 assert!(
                     (mean - 1.0).abs() <= 4.0 * se || !rectangles,
@@ -914,7 +915,7 @@ fn the_sky_mixture_with_the_sun_split_off_is_consistent() {
             // Sun draws, where the split is used, pass through their window.
             for t in sampler.context(&scene, x).terms.iter() {
                 if t.hot_share > 0.0 {
-                    let window = &portalview::light::LightSet::windows(&scene)[t.window];
+                    let window = &scene.windows[t.window];
                     let mut rng = Rng::new(41, k as u64);
                     for _ in 0..2000 {
                         let w = env.sample_hot(rng.uniform2()).unwrap();
