@@ -245,7 +245,7 @@ impl Environment {
     pub fn sky_weight(&self, w: Vec3) -> f32 {
         let pixel = self.pixel_pdf(w).0;
         let k = match self.hot() {
-            Some(hot) if sampling_weight(pixel) > hot.threshold => hot.fill,
+            Some(hot) if hot.excess(pixel).is_some() => hot.fill,
             _ => pixel,
         };
         sampling_weight(k) * self.strength
@@ -304,16 +304,26 @@ impl Environment {
     #[inline(always)]
     pub fn radiance_pdfs(&self, w: Vec3) -> (Vec3, f32, f32) {
         let (pixel, p_env) = self.pixel_pdf(w);
-        // The same test on the same value as when the hot pixels were picked out.
-        let p_hot = match self.hot() {
-            Some(hot) if sampling_weight(pixel) > hot.threshold => {
-                let excess = sampling_weight(pixel) - sampling_weight(hot.fill);
-                (excess / hot.power).max(0.0)
-            }
-            _ => 0.0,
-        };
+        let p_hot = self
+            .hot()
+            .and_then(|hot| Some(hot.excess(pixel)? / hot.power))
+            .unwrap_or(0.0);
         (pixel * self.strength, p_env, p_hot)
     }
+}
+
+impl HotSpot {
+    /// `weight(S)` for a pixel's value before the strength, if the pixel is hot.
+    fn excess(&self, pixel: Vec3) -> Option<f32> {
+        hot_excess(pixel, self.threshold, self.fill)
+    }
+}
+
+/// `weight(L) − weight(fill)` if `weight(L)` is above `threshold`: at load and when drawing
+/// and evaluating, the same test on the same number, so a pixel is hot for all or none.
+fn hot_excess(pixel: Vec3, threshold: f32, fill: Vec3) -> Option<f32> {
+    let w = sampling_weight(pixel);
+    (w > threshold).then(|| (w - sampling_weight(fill)).max(0.0))
 }
 
 /// `(cos θ0, cos θ1)` at the top and bottom of row `j` (decreasing: θ grows down the image).
@@ -384,6 +394,7 @@ fn hot_spot(image: &EnvImage) -> Option<HotSpot> {
     if !(threshold > 0.0 && threshold.is_finite()) {
         return None;
     }
+    // The test of `hot_excess`.
     let hot = |i: u32, j: u32| weight_of(i, j) > threshold;
     let pixels: Vec<u32> = (0..h)
         .flat_map(|j| (0..w).map(move |i| (i, j)))
@@ -415,7 +426,7 @@ fn hot_spot(image: &EnvImage) -> Option<HotSpot> {
     } else {
         Vec3::ZERO
     };
-    let excess = |p: u32| (weight_of(p % w, p / w) - sampling_weight(fill)).max(0.0);
+    let excess = |p: u32| hot_excess(image.pixel(p % w, p / w), threshold, fill).unwrap_or(0.0);
     let pick = Distribution1D::new(pixels.iter().map(|&p| excess(p) * solid_angle(p / w)));
     let power = pick.total();
     // The cap: about the weighted mean of the pixels' centres, out to their farthest corner.
