@@ -1,0 +1,603 @@
+"""Tangent-space normal maps: does portalview shade them as Cycles does?
+
+Run with Blender 3.4 from the repository root (outputs go to --out, not the repository):
+
+    blender -b --factory-startup -t 1 -P bench/blender/normalmap.py -- \
+        --out /work/refs/normalmap [--portalview target/release/portalview]
+
+The scene (Blender Z up): a wall at y = 0 facing the camera (-Y), four 1 x 0.75 m panels, each UV
+mapped 0..1 (u to the right, v up) with a Principled BSDF (Specular 0, Roughness 1: Lambertian in
+glTF) whose Normal comes from a Normal Map node (tangent space, strength 1) fed by a generated
+Non-Color PNG:
+
+    mild   (top left)      cos x cos bumps, 3 periods, slopes up to 15 degrees
+    steep  (top right)     the same, slopes up to 70 degrees
+    tiltX  (bottom left)   a constant normal tilted 30 degrees toward image +X (right)
+    tiltY  (bottom right)  a constant normal tilted 30 degrees toward image +Y (up)
+
+lit by (i) a point lamp (upper left, in front) or (ii) an emissive 0.6 m square (upper right).
+Each lighting is exported with Blender's glTF exporter twice, with TANGENT (`export_tangents`)
+and without; the script checks the files hold normalTexture and (or not) TANGENT, and writes a
+copy of each with the normal maps' green channel inverted (`*-ginv`). Cycles renders the Blender
+scene after swapping each Principled BSDF for a Diffuse BSDF with the same colour and the same
+Normal link (direct light only, box filter of width 1, two seeds). Cycles renders are kept and
+reused; --force renders them again.
+
+With --portalview, each glTF variant is rendered with it (same size, --max-depth 1) and compared
+per panel: the ratio of the means (portalview / Cycles, luminance) and the RMS of the per-pixel
+difference relative to Cycles' mean; `cy noise` is the RMS standard error of Cycles' two-seed mean
+per pixel, the floor of that RMS. For the tilted panels under the point lamp the closed form
+rho/pi * I/r^2 * max(0, n.l) (n the 8-bit map's normal) is compared with Cycles, with and without
+Cycles' bump_shadowing_term; and for every panel under the point lamp a numerical model of Cycles
+(supersampled pixels, the 8-bit map read bilinearly) at three levels: `model plain` (Lambert with
+the mapped normal), `model shadowing` (times bump_shadowing_term(sd->N, N, L), closure/bsdf.h)
+and `model cycles` (the normal also passed through ensure_valid_reflection(Ng, I, N),
+closure/bsdf_util.h, as svm_node_closure_bsdf does). `model cycles` matches Cycles to 0.04% RMS.
+"""
+
+import argparse
+import json
+import math
+import os
+import shutil
+import struct
+import subprocess
+import sys
+import time
+import zlib
+
+import bpy
+import numpy as np
+
+ALBEDO = 0.8
+POINT_POWER = 120.0  # W
+POINT_AT = (-1.2, -1.6, 1.2)
+AREA_AT = (1.1, -1.5, 1.1)
+AREA_SIZE = 0.6
+AREA_STRENGTH = 20.0
+PANEL_W, PANEL_H, GAP = 1.0, 0.75, 0.1
+MAP_SIZE = 256
+PERIODS = 3
+TILT = 30.0
+PANELS = {
+    # name: (centre x, centre z, kind, parameter)
+    "mild": (-(PANEL_W + GAP) / 2, (PANEL_H + GAP) / 2, "bumps", 15.0),
+    "steep": ((PANEL_W + GAP) / 2, (PANEL_H + GAP) / 2, "bumps", 70.0),
+    "tiltX": (-(PANEL_W + GAP) / 2, -(PANEL_H + GAP) / 2, "tilt", (1.0, 0.0)),
+    "tiltY": ((PANEL_W + GAP) / 2, -(PANEL_H + GAP) / 2, "tilt", (0.0, 1.0)),
+}
+CAMERA_AT = (0.0, -3.0, 0.0)
+LENS = 45.0
+
+
+def args():
+    argv = sys.argv[sys.argv.index("--") + 1 :] if "--" in sys.argv else []
+    p = argparse.ArgumentParser()
+    p.add_argument("--out", default="/work/refs/normalmap")
+    p.add_argument("--portalview", help="render every glTF variant with it and compare")
+    p.add_argument("--width", type=int, default=192)
+    p.add_argument("--height", type=int, default=144)
+    p.add_argument("--spp", type=int, default=256, help="Cycles samples per pixel per seed")
+    p.add_argument("--pv-spp", type=int, default=256, help="portalview samples per pixel")
+    p.add_argument("--pv-threads", type=int, default=1, help="RAYON_NUM_THREADS for portalview")
+    p.add_argument("--threads", type=int, default=1, help="Cycles threads")
+    p.add_argument("--lights", default="point,area")
+    p.add_argument("--force", action="store_true", help="render Cycles again")
+    p.add_argument(
+        "--probe-diffuse-export",
+        action="store_true",
+        help="also export a Diffuse BSDF version and print what glTF material it becomes",
+    )
+    return p.parse_args(argv)
+
+
+# --- images -----------------------------------------------------------------------------------
+
+
+def write_png(path, rgb8):
+    """An 8-bit RGB PNG from (h, w, 3) uint8, top row first (no colour management involved)."""
+    h, w, _ = rgb8.shape
+    raw = b"".join(b"\x00" + rgb8[y].tobytes() for y in range(h))
+
+    def chunk(tag, data):
+        return (
+            struct.pack(">I", len(data)) + tag + data
+            + struct.pack(">I", zlib.crc32(tag + data) & 0xFFFFFFFF)
+        )
+
+    with open(path, "wb") as f:
+        f.write(b"\x89PNG\r\n\x1a\n")
+        f.write(chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, 8, 2, 0, 0, 0)))
+        f.write(chunk(b"IDAT", zlib.compress(raw, 9)))
+        f.write(chunk(b"IEND", b""))
+
+
+def normal_field(kind, param, size=MAP_SIZE):
+    """Unit tangent-space normals (h, w, 3), top row first; +Y is up the image (+v in Blender,
+    -v in glTF), the OpenGL convention of Blender's Normal Map node and of glTF."""
+    c = (np.arange(size) + 0.5) / size
+    u = c[None, :].repeat(size, 0)
+    v = (1.0 - c)[:, None].repeat(size, 1)  # row 0 is the top: v = 1
+    if kind == "bumps":
+        # h = A cos(2 pi k u) cos(2 pi k v) with 2 pi k A = tan(max slope)
+        g = math.tan(math.radians(param))
+        a, b = 2 * math.pi * PERIODS * u, 2 * math.pi * PERIODS * v
+        n = np.stack([g * np.sin(a) * np.cos(b), g * np.cos(a) * np.sin(b), np.ones_like(u)], -1)
+    else:
+        t = math.radians(TILT)
+        n = np.zeros((size, size, 3))
+        n[..., 0] = param[0] * math.sin(t)
+        n[..., 1] = param[1] * math.sin(t)
+        n[..., 2] = math.cos(t)
+    return n / np.linalg.norm(n, axis=-1, keepdims=True)
+
+
+def encode(n, invert_green=False):
+    rgb = np.clip(np.round((n * 0.5 + 0.5) * 255.0), 0, 255).astype(np.uint8)
+    if invert_green:
+        rgb[..., 1] = 255 - rgb[..., 1]
+    return rgb
+
+
+def make_maps(out):
+    """The four normal maps as PNGs (and their green-inverted twins) in out/maps."""
+    d = os.path.join(out, "maps")
+    os.makedirs(d, exist_ok=True)
+    paths = {}
+    for name, (_, _, kind, param) in PANELS.items():
+        n = normal_field(kind, param)
+        paths[name] = os.path.join(d, f"{name}.png")
+        write_png(paths[name], encode(n))
+        write_png(os.path.join(d, f"{name}-ginv.png"), encode(n, True))
+    return paths
+
+
+# --- the scene --------------------------------------------------------------------------------
+
+
+def panel_material(name, image_path):
+    m = bpy.data.materials.new(name)
+    m.use_nodes = True
+    nodes, links = m.node_tree.nodes, m.node_tree.links
+    bsdf = nodes["Principled BSDF"]
+    bsdf.inputs["Base Color"].default_value = (ALBEDO, ALBEDO, ALBEDO, 1.0)
+    bsdf.inputs["Specular"].default_value = 0.0
+    bsdf.inputs["Roughness"].default_value = 1.0
+    img = bpy.data.images.load(image_path)
+    img.colorspace_settings.name = "Non-Color"
+    tex = nodes.new("ShaderNodeTexImage")
+    tex.image = img
+    tex.interpolation = "Linear"
+    nm = nodes.new("ShaderNodeNormalMap")
+    nm.space = "TANGENT"
+    nm.inputs["Strength"].default_value = 1.0
+    links.new(tex.outputs["Color"], nm.inputs["Color"])
+    links.new(nm.outputs["Normal"], bsdf.inputs["Normal"])
+    return m
+
+
+def emission(name, color, strength):
+    m = bpy.data.materials.new(name)
+    m.use_nodes = True
+    nodes = m.node_tree.nodes
+    nodes.remove(nodes["Principled BSDF"])
+    e = nodes.new("ShaderNodeEmission")
+    e.inputs["Color"].default_value = (*color, 1.0)
+    e.inputs["Strength"].default_value = strength
+    m.node_tree.links.new(e.outputs["Emission"], nodes["Material Output"].inputs["Surface"])
+    return m
+
+
+def look_rotation(frm, to, track="-Z"):
+    from mathutils import Vector
+
+    return (Vector(to) - Vector(frm)).to_track_quat(track, "Y").to_euler()
+
+
+def build_scene(maps, light, width, height):
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    for name, (x, z, _, _) in PANELS.items():
+        # A plane in XY (u along +X, v along +Y, normal +Z) turned to face -Y: v runs up.
+        bpy.ops.mesh.primitive_plane_add(size=1.0, location=(x, 0.0, z), rotation=(math.pi / 2, 0, 0))
+        obj = bpy.context.object
+        obj.name = name
+        obj.scale = (PANEL_W, PANEL_H, 1.0)
+        bpy.ops.object.transform_apply(location=False, rotation=True, scale=True)
+        obj.data.materials.append(panel_material(name, maps[name]))
+
+    if light == "point":
+        bpy.ops.object.light_add(type="POINT", location=POINT_AT)
+        lamp = bpy.context.object
+        lamp.name = "Lamp"
+        lamp.data.energy = POINT_POWER
+        lamp.data.shadow_soft_size = 0.0
+    else:
+        bpy.ops.mesh.primitive_plane_add(size=AREA_SIZE, location=AREA_AT)
+        panel = bpy.context.object
+        panel.name = "Emitter"
+        # The face normal (+Z) toward the wall's centre.
+        panel.rotation_euler = look_rotation(AREA_AT, (0.0, 0.0, 0.0), track="Z")
+        panel.data.materials.append(emission("Emitter", (1.0, 1.0, 1.0), AREA_STRENGTH))
+
+    bpy.ops.object.camera_add(location=CAMERA_AT, rotation=(math.pi / 2, 0.0, 0.0))
+    cam = bpy.context.object
+    cam.name = "Camera"
+    cam.data.lens = LENS
+    scene.camera = cam
+
+    scene.world = bpy.data.worlds.new("Black")
+    scene.world.use_nodes = True
+    scene.world.node_tree.nodes["Background"].inputs["Strength"].default_value = 0.0
+    scene.render.resolution_x = width
+    scene.render.resolution_y = height
+    scene.render.resolution_percentage = 100
+
+
+def export(path, tangents):
+    os.makedirs(os.path.dirname(path), exist_ok=True)
+    bpy.ops.export_scene.gltf(
+        filepath=path,
+        export_format="GLTF_SEPARATE",
+        export_extras=True,
+        export_lights=True,
+        export_cameras=True,
+        export_yup=True,
+        export_apply=True,
+        export_tangents=tangents,
+    )
+
+
+def check_gltf(path):
+    """What the exported file holds: per material its normalTexture, per mesh TANGENT."""
+    with open(path) as f:
+        g = json.load(f)
+    mats = {}
+    for m in g.get("materials", []):
+        nt = m.get("normalTexture")
+        uri = None
+        if nt is not None:
+            src = g["textures"][nt["index"]]["source"]
+            uri = g["images"][src].get("uri")
+        mats[m["name"]] = {
+            "normalTexture": nt,
+            "uri": uri,
+            "extensions": sorted(m.get("extensions", {})),
+            "pbr": m.get("pbrMetallicRoughness"),
+        }
+    tangent = [
+        "TANGENT" in p["attributes"] for mesh in g.get("meshes", []) for p in mesh["primitives"]
+    ]
+    return g, mats, tangent
+
+
+def green_inverted_copy(src_dir, dst_dir, mats, out):
+    """The exported directory again, with each normal map's green channel inverted."""
+    if os.path.isdir(dst_dir):
+        shutil.rmtree(dst_dir)
+    shutil.copytree(src_dir, dst_dir)
+    for name, m in mats.items():
+        if m["uri"] and name in PANELS:
+            shutil.copyfile(
+                os.path.join(out, "maps", f"{name}-ginv.png"), os.path.join(dst_dir, m["uri"])
+            )
+
+
+def swap_to_diffuse():
+    """The glTF file describes Lambertian surfaces; Cycles' Diffuse BSDF is one. The Normal
+    link (from the Normal Map node) is kept."""
+    for m in bpy.data.materials:
+        if not m.use_nodes or "Principled BSDF" not in m.node_tree.nodes:
+            continue
+        nodes, links = m.node_tree.nodes, m.node_tree.links
+        p = nodes["Principled BSDF"]
+        d = nodes.new("ShaderNodeBsdfDiffuse")
+        d.inputs["Color"].default_value = p.inputs["Base Color"].default_value
+        for link in list(p.inputs["Base Color"].links):
+            links.new(link.from_socket, d.inputs["Color"])
+        for link in list(p.inputs["Normal"].links):
+            links.new(link.from_socket, d.inputs["Normal"])
+        links.new(d.outputs["BSDF"], nodes["Material Output"].inputs["Surface"])
+        nodes.remove(p)
+
+
+def render_cycles(path, spp, seed, threads):
+    s = bpy.context.scene
+    s.render.engine = "CYCLES"
+    s.cycles.device = "CPU"
+    s.render.threads_mode = "FIXED"
+    s.render.threads = threads
+    s.cycles.samples = spp
+    s.cycles.use_adaptive_sampling = False
+    s.cycles.use_denoising = False
+    s.cycles.max_bounces = 0  # direct light only, as portalview's --max-depth 1
+    s.cycles.sample_clamp_direct = 0.0
+    s.cycles.sample_clamp_indirect = 0.0
+    s.cycles.pixel_filter_type = "BOX"
+    s.cycles.filter_width = 1.0
+    s.cycles.seed = seed
+    s.view_settings.view_transform = "Standard"
+    s.render.image_settings.file_format = "OPEN_EXR"
+    s.render.image_settings.color_depth = "32"
+    s.render.filepath = path
+    bpy.ops.render.render(write_still=True)
+
+
+def load_exr(path):
+    img = bpy.data.images.load(path)
+    px = np.array(img.pixels[:], dtype=np.float64).reshape(img.size[1], img.size[0], 4)
+    bpy.data.images.remove(img)
+    return px[::-1, :, :3]  # top row first
+
+
+def luminance(rgb):
+    return rgb @ np.array([0.2126, 0.7152, 0.0722])
+
+
+# --- regions and the closed form --------------------------------------------------------------
+
+
+def camera_rays(width, height):
+    """Per pixel centre (top row first): the camera's position and unit ray directions."""
+    cam = bpy.context.scene.camera
+    frame = [np.array(v) for v in cam.data.view_frame(scene=bpy.context.scene)]
+    # view_frame: top right, bottom right, bottom left, top left (camera space, z = -d)
+    tr, br, bl, tl = frame
+    m = np.array(cam.matrix_world)
+    xs = (np.arange(width) + 0.5) / width
+    ys = (np.arange(height) + 0.5) / height
+    top = tl[None, :] + xs[:, None] * (tr - tl)[None, :]
+    bottom = bl[None, :] + xs[:, None] * (br - bl)[None, :]
+    local = top[None, :, :] + ys[:, None, None] * (bottom - top)[None, :, :]
+    d = local @ m[:3, :3].T
+    d /= np.linalg.norm(d, axis=-1, keepdims=True)
+    return m[:3, 3], d
+
+
+def panel_masks(width, height, margin=0.02):
+    """Per panel, the pixels whose centre ray meets the panel at least `margin` m inside it."""
+    o, d = camera_rays(width, height)
+    t = -o[1] / d[..., 1]
+    p = o + t[..., None] * d
+    masks = {}
+    for name, (x, z, _, _) in PANELS.items():
+        masks[name] = (np.abs(p[..., 0] - x) < PANEL_W / 2 - margin) & (
+            np.abs(p[..., 2] - z) < PANEL_H / 2 - margin
+        )
+    return masks, p
+
+
+def closed_form_point(width, height):
+    """Radiance (luminance = value: white light, grey albedo) of the tilted panels under the
+    point lamp: rho/pi * P/(4 pi) / r^2 * max(0, n.l), n decoded from the 8-bit map."""
+    _, p = panel_masks(width, height)
+    out = {}
+    for name in ("tiltX", "tiltY"):
+        _, _, kind, param = PANELS[name]
+        n_ts = normal_field(kind, param, size=1)[0, 0]
+        n_ts = encode(n_ts).astype(np.float64) / 255.0 * 2.0 - 1.0
+        n_ts /= np.linalg.norm(n_ts)
+        # tangent +X, bitangent +Z (v up), normal -Y
+        n = n_ts[0] * np.array([1.0, 0, 0]) + n_ts[1] * np.array([0, 0, 1.0]) + n_ts[2] * np.array([0, -1.0, 0])
+        l = np.array(POINT_AT) - p
+        r2 = np.sum(l * l, axis=-1)
+        l /= np.sqrt(r2)[..., None]
+        cos = np.maximum(l @ n, 0.0)
+        plain = ALBEDO / math.pi * POINT_POWER / (4 * math.pi) / r2 * cos
+        out[name] = plain * bump_shadowing(np.array([0, -1.0, 0]), n, l), plain
+    return out
+
+
+def bump_shadowing(ns, n, l):
+    """Cycles 3.4's bump_shadowing_term(sd->N, sc->N, omega_in) (closure/bsdf.h), which
+    bsdf_eval multiplies into a diffuse closure's value wherever its normal differs from the
+    interpolated shading normal sd->N (Chiang, Li and Burley 2019, "Taming the Shadow
+    Terminator"). ns: sd->N, n: the mapped normal, l: (..., 3) unit directions to the light."""
+    n = np.broadcast_to(n, l.shape)
+    cos_nl = np.sum(l * n, -1)
+    sign = np.where(cos_nl < 0.0, -1.0, 1.0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        g = (sign * (l @ ns)) / (cos_nl * sign * (n @ ns))
+    g = np.where(np.isfinite(g), g, 0.0)
+    smooth = -(g ** 3) + g ** 2 + g
+    return np.where(g >= 1.0, 1.0, np.where(g < 0.0, 0.0, smooth))
+
+
+def ensure_valid_reflection(ng, i, n):
+    """Cycles 3.4's ensure_valid_reflection(Ng, I, N) (closure/bsdf_util.h), vectorised: ng (3,),
+    i and n (..., 3). svm_node_closure_bsdf applies it to every closure's normal."""
+    dot = lambda a, b: np.sum(a * b, axis=-1)
+    r = 2 * dot(n, i)[..., None] * n - i
+    threshold = np.minimum(0.9 * (i @ ng), 0.01)
+    keep = (r @ ng) >= threshold
+    x = n - (n @ ng)[..., None] * ng
+    x /= np.maximum(np.linalg.norm(x, axis=-1, keepdims=True), 1e-30)
+    ix, iz = dot(i, x), i @ ng
+    ix2, iz2 = ix * ix, iz * iz
+    a = ix2 + iz2
+    b = np.sqrt(np.maximum(ix2 * (a - threshold * threshold), 0.0))
+    c = iz * threshold + a
+    fac = 0.5 / a
+    n1z2, n2z2 = fac * (b + c), fac * (-b + c)
+    valid1 = (n1z2 > 1e-5) & (n1z2 <= 1 + 1e-5)
+    valid2 = (n2z2 > 1e-5) & (n2z2 <= 1 + 1e-5)
+    n1 = np.stack([np.sqrt(np.maximum(1 - n1z2, 0)), np.sqrt(np.maximum(n1z2, 0))], -1)
+    n2 = np.stack([np.sqrt(np.maximum(1 - n2z2, 0)), np.sqrt(np.maximum(n2z2, 0))], -1)
+    r1 = 2 * (n1[..., 0] * ix + n1[..., 1] * iz) * n1[..., 1] - iz
+    r2 = 2 * (n2[..., 0] * ix + n2[..., 1] * iz) * n2[..., 1] - iz
+    both_ok = (r1 >= 1e-5) & (r2 >= 1e-5)
+    pick1_both = np.where(both_ok, r1 < r2, r1 > r2)
+    pick1 = np.where(valid1 & valid2, pick1_both, valid1)
+    new = np.where(pick1[..., None], n1, n2)
+    out = new[..., :1] * x + new[..., 1:] * ng
+    out = np.where((~valid1 & ~valid2)[..., None], ng, out)
+    return np.where(keep[..., None], n, out)
+
+
+def cycles_model(width, height, light_at, ss=6):
+    """Per panel, a numerical model of Cycles 3.4 shading the panels under the point lamp, at
+    three levels: plain Lambert with the mapped normal; with bump_shadowing_term; and with
+    ensure_valid_reflection too (Cycles). ss x ss samples per pixel (box filter), the 8-bit map
+    read bilinearly with wrapping as Cycles' Linear image texture does."""
+    cam = bpy.context.scene.camera
+    o = np.array(cam.matrix_world)[:3, 3]
+    frame = [np.array(v) for v in cam.data.view_frame(scene=bpy.context.scene)]
+    tr, br, bl, tl = frame
+    m3 = np.array(cam.matrix_world)[:3, :3]
+    offs = (np.arange(ss) + 0.5) / ss
+    xs = ((np.arange(width)[:, None] + offs[None, :]) / width).ravel()
+    ys = ((np.arange(height)[:, None] + offs[None, :]) / height).ravel()
+    top = tl + xs[:, None] * (tr - tl)
+    bottom = bl + xs[:, None] * (br - bl)
+    local = top[None] + ys[:, None, None] * (bottom - top)[None]
+    d = local @ m3.T
+    d /= np.linalg.norm(d, axis=-1, keepdims=True)
+    t = -o[1] / d[..., 1]
+    p = o + t[..., None] * d
+    i = -d
+    ng = np.array([0.0, -1.0, 0.0])
+    T, B = np.array([1.0, 0, 0]), np.array([0, 0, 1.0])
+    l = np.array(light_at) - p
+    r2 = np.sum(l * l, -1)
+    l /= np.sqrt(r2)[..., None]
+    scale = ALBEDO / math.pi * POINT_POWER / (4 * math.pi) / r2
+    levels = {k: np.zeros((height, width)) for k in ("plain", "shadowing", "cycles")}
+    for name, (cx, cz, kind, param) in PANELS.items():
+        u = (p[..., 0] - (cx - PANEL_W / 2)) / PANEL_W
+        v = (p[..., 2] - (cz - PANEL_H / 2)) / PANEL_H
+        inside = (u >= 0) & (u < 1) & (v >= 0) & (v < 1)
+        tex = encode(normal_field(kind, param))[::-1].astype(np.float64) / 255.0  # bottom row 0
+        h, w, _ = tex.shape
+        fx, fy = u * w - 0.5, v * h - 0.5
+        ix, iy = np.floor(fx).astype(int), np.floor(fy).astype(int)
+        ax, ay = (fx - ix)[..., None], (fy - iy)[..., None]
+        ix0, ix1, iy0, iy1 = ix % w, (ix + 1) % w, iy % h, (iy + 1) % h
+        col = (1 - ay) * ((1 - ax) * tex[iy0, ix0] + ax * tex[iy0, ix1]) + ay * (
+            (1 - ax) * tex[iy1, ix0] + ax * tex[iy1, ix1]
+        )
+        c = col * 2 - 1
+        n = c[..., :1] * T + c[..., 1:2] * B + c[..., 2:3] * ng
+        n /= np.linalg.norm(n, axis=-1, keepdims=True)
+        for level in levels:
+            nn = ensure_valid_reflection(ng, i, n) if level == "cycles" else n
+            val = np.maximum(np.sum(nn * l, -1), 0.0)
+            if level != "plain":
+                val = val * bump_shadowing(ng, nn, l)
+            val = np.where(inside, scale * val, 0.0)
+            levels[level] += val.reshape(height, ss, width, ss).mean(axis=(1, 3))
+    return levels
+
+
+# --- main -------------------------------------------------------------------------------------
+
+
+def run_portalview(exe, gltf, path, a, seed=1):
+    env = dict(os.environ, RAYON_NUM_THREADS=str(a.pv_threads))
+    cmd = [
+        exe, "render", "--scene", gltf, "--width", str(a.width), "--height", str(a.height),
+        "--spp", str(a.pv_spp), "--seed", str(seed), "--max-depth", "1", "--out", path,
+    ]
+    t0 = time.time()
+    r = subprocess.run(cmd, env=env, capture_output=True, text=True)
+    if r.returncode != 0:
+        print(f"portalview failed on {gltf}:\n{r.stderr.strip()}")
+        return None
+    print(f"  portalview {os.path.relpath(path)}: {time.time() - t0:.0f} s")
+    return load_exr(path)
+
+
+def main():
+    a = args()
+    out = os.path.abspath(a.out)
+    os.makedirs(out, exist_ok=True)
+    maps = make_maps(out)
+    lights = a.lights.split(",")
+    report = {}
+    for light in lights:
+        build_scene(maps, light, a.width, a.height)
+        variants = {}
+        for tangents in (True, False):
+            tag = f"{light}-{'tangents' if tangents else 'notangents'}"
+            path = os.path.join(out, tag, "scene.gltf")
+            export(path, tangents)
+            g, mats, has_tangent = check_gltf(path)
+            print(f"{tag}: TANGENT in {sum(has_tangent)}/{len(has_tangent)} primitives; "
+                  + ", ".join(f"{k}: normalTexture {'yes' if v['normalTexture'] else 'NO'}"
+                              for k, v in mats.items() if k in PANELS))
+            variants[tag] = path
+            ginv = os.path.join(out, tag + "-ginv")
+            green_inverted_copy(os.path.dirname(path), ginv, mats, out)
+            variants[tag + "-ginv"] = os.path.join(ginv, "scene.gltf")
+        if a.probe_diffuse_export and light == lights[0]:
+            probe_diffuse_export(out)
+            build_scene(maps, light, a.width, a.height)
+        swap_to_diffuse()
+        masks, _ = panel_masks(a.width, a.height)
+        cycles = []
+        for seed in (1, 2):
+            path = os.path.join(out, f"cycles-{light}-{seed}.exr")
+            if a.force or not os.path.exists(path):
+                t0 = time.time()
+                render_cycles(path, a.spp, seed, a.threads)
+                print(f"  Cycles {path}: {time.time() - t0:.0f} s")
+            cycles.append(luminance(load_exr(path)))
+        report[light] = (variants, masks, cycles)
+
+    rows = []
+    for light, (variants, masks, cycles) in report.items():
+        cy = (cycles[0] + cycles[1]) / 2
+        noise = np.abs(cycles[0] - cycles[1]) / 2  # per-pixel standard error of the mean, roughly
+        if light == "point":
+            cf = closed_form_point(a.width, a.height)
+            for name, images in cf.items():
+                m = masks[name]
+                for label, img in zip(("closed form", "c.f. w/o shadowing"), images):
+                    rows.append((light, label, name, cy[m].mean(), img[m].mean() / cy[m].mean(),
+                                 math.sqrt(np.mean((img[m] - cy[m]) ** 2)) / cy[m].mean(),
+                                 math.sqrt(np.mean(noise[m] ** 2)) / cy[m].mean()))
+            model = cycles_model(a.width, a.height, POINT_AT)
+            for label, img in model.items():
+                for name, m in masks.items():
+                    rows.append((light, f"model {label}", name, cy[m].mean(),
+                                 img[m].mean() / cy[m].mean(),
+                                 math.sqrt(np.mean((img[m] - cy[m]) ** 2)) / cy[m].mean(),
+                                 math.sqrt(np.mean(noise[m] ** 2)) / cy[m].mean()))
+        if not a.portalview:
+            for name, m in masks.items():
+                rows.append((light, "Cycles only", name, cy[m].mean(), float("nan"), float("nan"),
+                             math.sqrt(np.mean(noise[m] ** 2)) / cy[m].mean()))
+            continue
+        for tag, gltf in variants.items():
+            pv_path = os.path.join(out, "portalview", tag + ".exr")
+            os.makedirs(os.path.dirname(pv_path), exist_ok=True)
+            pv = run_portalview(a.portalview, gltf, pv_path, a)
+            if pv is None:
+                continue
+            pv = luminance(pv)
+            variant = tag.split("-", 1)[1]
+            for name, m in masks.items():
+                c = cy[m].mean()
+                rows.append((light, variant, name, c, pv[m].mean() / c,
+                             math.sqrt(np.mean((pv[m] - cy[m]) ** 2)) / c,
+                             math.sqrt(np.mean(noise[m] ** 2)) / c))
+    print(f"\n{'light':<6} {'variant':<18} {'panel':<6} {'Cycles mean':>11} {'ratio':>7} "
+          f"{'RMS diff':>9} {'cy noise':>9}")
+    for light, variant, name, c, ratio, rms, nz in rows:
+        print(f"{light:<6} {variant:<18} {name:<6} {c:11.5f} {ratio:7.3f} {100 * rms:8.2f}% "
+              f"{100 * nz:8.2f}%")
+    with open(os.path.join(out, "table.json" if a.portalview else "cycles-table.json"), "w") as f:
+        json.dump(rows, f, indent=1)
+
+
+def probe_diffuse_export(out):
+    """Exports the panels with a Diffuse BSDF (Normal Map linked) and prints the glTF material."""
+    swap_to_diffuse()
+    path = os.path.join(out, "probe-diffuse", "scene.gltf")
+    export(path, True)
+    _, mats, has_tangent = check_gltf(path)
+    print(f"probe: a Diffuse BSDF exports as (TANGENT in {sum(has_tangent)} primitives):")
+    for k, v in mats.items():
+        print(f"  {k}: {json.dumps(v)}")
+
+
+main()
