@@ -93,9 +93,56 @@ pub fn png_bytes(width: u32, height: u32, rgb8: &[u8]) -> Result<Vec<u8>, String
     Ok(bytes.into_inner())
 }
 
-/// Reads an `.exr` as linear RGB: width, height and pixels. Errors name the file.
+/// The most pixels an image file may decode to, whatever its size: 2^28 (a 23k × 11.5k
+/// panorama, 3 GiB as f32 RGB).
+pub const MAX_DECODED_PIXELS: u64 = 1 << 28;
+
+/// The most pixels an EXR or Radiance HDR file may decode to per byte of the file. Their
+/// codecs compress at most about 1000:1 (deflate's limit is 1032:1, and a pixel is at least
+/// two bytes of half floats; Radiance's run-length code at most 64:1), so a real file stays far
+/// below this, while a damaged header that claims a huge image in a small file is refused
+/// before anything is allocated.
+pub const MAX_PIXELS_PER_FILE_BYTE: u64 = 1024;
+
+/// Whether a `width`×`height` image may be decoded from a file of `file_bytes` bytes
+/// ([`MAX_DECODED_PIXELS`], and `per_byte` pixels per byte of the file); the error says why not.
+pub fn check_decoded_size(
+    width: u64,
+    height: u64,
+    file_bytes: u64,
+    per_byte: u64,
+) -> Result<(), String> {
+    let pixels = width.saturating_mul(height);
+    let bound = MAX_DECODED_PIXELS.min(file_bytes.saturating_mul(per_byte));
+    if pixels > bound {
+        return Err(format!(
+            "its header claims {width}×{height} pixels, more than a {file_bytes}-byte file can \
+             hold (at most {bound}: {per_byte} per byte of the file, {MAX_DECODED_PIXELS} in all)"
+        ));
+    }
+    Ok(())
+}
+
+/// Reads an `.exr` as linear RGB: width, height and pixels. Errors name the file. Every layer's
+/// size is checked against the file's size ([`check_decoded_size`]) before any pixel is
+/// allocated.
 pub fn read_exr(path: &Path) -> Result<(u32, u32, Vec<Vec3>), String> {
     use exr::prelude::*;
+    let file_bytes = fs::metadata(path)
+        .map_err(|e| format!("{}: cannot read EXR: {e}", path.display()))?
+        .len();
+    let meta = exr::meta::MetaData::read_from_file(path, false)
+        .map_err(|e| format!("{}: cannot read EXR: {e}", path.display()))?;
+    for header in &meta.headers {
+        let size = header.layer_size;
+        check_decoded_size(
+            size.width() as u64,
+            size.height() as u64,
+            file_bytes,
+            MAX_PIXELS_PER_FILE_BYTE,
+        )
+        .map_err(|e| format!("{}: cannot read EXR: {e}", path.display()))?;
+    }
     let image = read_first_rgba_layer_from_file(
         path,
         |resolution, _| {
@@ -105,7 +152,9 @@ pub fn read_exr(path: &Path) -> Result<(u32, u32, Vec<Vec3>), String> {
             )
         },
         |(width, pixels), position, (r, g, b, _a): (f32, f32, f32, f32)| {
-            pixels[position.y() * *width + position.x()] = Vec3::new(r, g, b);
+            if let Some(p) = pixels.get_mut(position.y() * *width + position.x()) {
+                *p = Vec3::new(r, g, b);
+            }
         },
     )
     .map_err(|e| format!("{}: cannot read EXR: {e}", path.display()))?;

@@ -27,7 +27,8 @@ pub(super) enum Done {
         portals: Vec<PortalDesc>,
     },
     /// An environment image read from a file.
-    Environment(EnvMap),
+    /// An environment image read, and what was repaired in it (negative pixels).
+    Environment { map: EnvMap, warnings: Vec<String> },
 }
 
 /// Where and what to save.
@@ -75,11 +76,15 @@ impl Job {
     pub fn load_environment(path: std::path::PathBuf, ctx: &egui::Context) -> Job {
         let what = format!("reading {}", path.display());
         Job::spawn(what, ctx, move || {
-            let image = load_image(&path).map_err(|e| e.to_string())?;
-            Ok(Done::Environment(EnvMap::Image {
-                file: Some(path),
-                image: std::sync::Arc::new(image),
-            }))
+            let mut warnings = Vec::new();
+            let image = load_image(&path, &mut warnings).map_err(|e| e.to_string())?;
+            Ok(Done::Environment {
+                map: EnvMap::Image {
+                    file: Some(path),
+                    image: std::sync::Arc::new(image),
+                },
+                warnings,
+            })
         })
     }
 

@@ -484,7 +484,7 @@ impl PortalViewApp {
                 scene,
                 portals,
             }) => self.saved(path, scene, portals),
-            Ok(Done::Environment(map)) => {
+            Ok(Done::Environment { map, warnings }) => {
                 let kept = self.current.as_ref().and_then(Current::edited_environment);
                 let environment = crate::asset::environment::EnvironmentDesc {
                     map,
@@ -493,6 +493,9 @@ impl PortalViewApp {
                     ))
                 };
                 self.apply_environment(EnvironmentEdit::Set(Some(environment)));
+                if !warnings.is_empty() {
+                    self.message = Some(warnings.join("\n"));
+                }
             }
             Err(e) => {
                 self.message = Some(e);

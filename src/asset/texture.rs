@@ -10,6 +10,10 @@ use std::sync::{Arc, OnceLock};
 pub const MAX_IMAGE_SIDE: u32 = 16384;
 /// The most texels one image may have (256 MiB as RGBA8).
 pub const MAX_IMAGE_TEXELS: u64 = 64 << 20;
+/// The most texels a PNG or JPEG may decode to per byte of its file. A 1-bit PNG of one colour
+/// packs 8 texels a byte and deflate compresses 1032:1 at most, so about 8,300; JPEG far less.
+/// A header that claims more than this is damaged, and is refused before decoding.
+pub const MAX_TEXELS_PER_FILE_BYTE: u64 = 16384;
 /// The most texels all the images of a scene may have together (1 GiB as RGBA8).
 pub const MAX_SCENE_TEXELS: u64 = 256 << 20;
 

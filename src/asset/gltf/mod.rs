@@ -118,6 +118,12 @@ fn internal(file: &Path, message: impl ToString) -> GltfError {
     }
 }
 
+/// Decodes a texture image as the loader does (PNG or JPEG, bounded before decoding): for the
+/// image fuzzing target and tests. The error says why, without a file name.
+pub fn decode_texture(bytes: &[u8]) -> Result<crate::asset::texture::Image, String> {
+    decode_image(bytes, "texture".to_owned())
+}
+
 /// Reads a `.gltf` or `.glb` file's default scene (else its first) into world space. What the
 /// file uses that is not read (extensions, textures) is in the description's `warnings`, each
 /// naming the file and what is ignored.
@@ -134,7 +140,7 @@ pub fn load_gltf(path: &Path) -> Result<SceneDesc, GltfError> {
         };
         let visits = walk_scene(path, &root)?;
         let mut desc = doc.scene(&visits, &mut warnings)?;
-        desc.environment = scene_environment(path, &root)?;
+        desc.environment = scene_environment(path, &root, &mut warnings)?;
         desc.warnings = warnings;
         Ok(desc)
     })

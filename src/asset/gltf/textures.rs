@@ -10,8 +10,8 @@ use glam::Vec2;
 
 use super::*;
 use crate::asset::texture::{
-    Filter, Image, MAX_IMAGE_SIDE, MAX_IMAGE_TEXELS, MAX_SCENE_TEXELS, Sampler, TextureRef,
-    TextureTransform, Wrap,
+    Filter, Image, MAX_IMAGE_SIDE, MAX_IMAGE_TEXELS, MAX_SCENE_TEXELS, MAX_TEXELS_PER_FILE_BYTE,
+    Sampler, TextureRef, TextureTransform, Wrap,
 };
 
 /// The most bytes an external image file or data URI may hold.
@@ -177,7 +177,8 @@ impl<'a> Doc<'a> {
 }
 
 /// A PNG or JPEG image as 8-bit RGBA (16-bit channels are rounded to 8 bits), refused if
-/// larger than [`MAX_IMAGE_SIDE`] or [`MAX_IMAGE_TEXELS`] before any texel is allocated.
+/// larger than [`MAX_IMAGE_SIDE`], [`MAX_IMAGE_TEXELS`] or [`MAX_TEXELS_PER_FILE_BYTE`] times
+/// its file's size before any texel is allocated.
 pub(super) fn decode_image(bytes: &[u8], name: String) -> Result<Image, String> {
     let reader = image::ImageReader::new(Cursor::new(bytes))
         .with_guessed_format()
@@ -206,6 +207,12 @@ pub(super) fn decode_image(bytes: &[u8], name: String) -> Result<Image, String> 
             "is {width}×{height}, more than the {MAX_IMAGE_TEXELS} texels an image may have"
         ));
     }
+    crate::io::check_decoded_size(
+        width as u64,
+        height as u64,
+        bytes.len() as u64,
+        MAX_TEXELS_PER_FILE_BYTE,
+    )?;
     let mut reader = image::ImageReader::new(Cursor::new(bytes))
         .with_guessed_format()
         .map_err(|e| format!("cannot be read: {e}"))?;
