@@ -6,7 +6,7 @@ use egui::Ui;
 
 use super::files::Purpose;
 use super::{Command, PortalViewApp};
-use crate::asset::environment::{EnvMap, EnvironmentDesc};
+use crate::asset::environment::{EnvMap, EnvironmentDesc, Interpolation};
 
 /// What an edit of the environment panel asks for.
 #[derive(Clone, Debug, PartialEq)]
@@ -106,6 +106,20 @@ impl PortalViewApp {
                     .labelled_by(label.id)
                     .changed();
                 ui.end_row();
+                if matches!(edited.map, EnvMap::Image { .. }) {
+                    ui.label("interpolation").on_hover_text(
+                        "How the image is read between pixels (Blender's Environment Texture: \
+                         Linear is its default)",
+                    );
+                    ui.horizontal(|ui| {
+                        for mode in Interpolation::ALL {
+                            changed |= ui
+                                .radio_value(&mut edited.interpolation, mode, mode.name())
+                                .changed();
+                        }
+                    });
+                    ui.end_row();
+                }
             });
         if changed {
             commands.push(Command::Environment(EnvironmentEdit::Set(Some(edited))));

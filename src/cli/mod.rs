@@ -16,7 +16,7 @@ pub use compare::CompareArgs;
 pub use render::RenderArgs;
 pub use view::ViewArgs;
 
-use crate::asset::environment::EnvironmentOverrides;
+use crate::asset::environment::{EnvironmentOverrides, Interpolation};
 use crate::light::Mixture;
 use crate::sampling::SamplerKind;
 use crate::scene::Scene;
@@ -86,6 +86,10 @@ pub struct EnvironmentArgs {
     /// (default: the scene's, else 0).
     #[arg(long, value_name = "DEG", allow_negative_numbers = true)]
     pub environment_rotation: Option<f32>,
+    /// How the image is read between pixels, as Blender's Environment Texture node's
+    /// Interpolation (default: the scene's `environment_interpolation`, else linear).
+    #[arg(long, value_enum, value_name = "MODE")]
+    pub environment_interpolation: Option<Interpolation>,
 }
 
 impl From<&EnvironmentArgs> for EnvironmentOverrides {
@@ -94,6 +98,7 @@ impl From<&EnvironmentArgs> for EnvironmentOverrides {
             source: a.environment.clone(),
             strength: a.environment_strength,
             rotation_degrees: a.environment_rotation,
+            interpolation: a.environment_interpolation,
         }
     }
 }

@@ -5,14 +5,20 @@
 //! map's frame: `u = 0.5 + atan2(d.z, d.x) / 2π`, row fraction from the top `v = acos(d.y) / π`.
 //! The map is turned about +Y: a world direction `w` reads the map at `R_y(rotation) · w`,
 //! which is what a Blender *Mapping* node (type Point) with Z rotation `rotation` in front of the
-//! Environment Texture does (Blender's Z is glTF's Y). Pixels are constant over their cell (no filtering), so the radiance
-//! and the sampling density are piecewise constant on the same cells.
+//! Environment Texture does (Blender's Z is glTF's Y).
+//!
+//! The image is read as Blender reads it: the pixel a direction falls in (*Closest*), or
+//! bilinearly between the four nearest pixel centres (*Linear*, the default), wrapping in both
+//! directions as Cycles' environment images do. The sampling density stays piecewise constant
+//! on the pixels; with *Linear* a pixel's weight is the largest of its 3 × 3 neighbourhood's,
+//! every pixel the filter can read there, so the density is positive wherever the filtered
+//! radiance is, and the estimate `L / pdf` stays exact (`docs/method.md` §9.6).
 
 use glam::{Vec2, Vec3};
 use std::f32::consts::{PI, TAU};
 
 use super::area::luminance;
-use crate::asset::environment::{EnvImage, EnvMap, EnvironmentDesc};
+use crate::asset::environment::{EnvImage, EnvMap, EnvironmentDesc, Interpolation};
 use crate::sampling::Distribution1D;
 
 /// An environment ready to sample.
@@ -34,9 +40,10 @@ enum Map {
         width: u32,
         height: u32,
         pixels: Vec<Vec3>,
+        interpolation: Interpolation,
         /// Rows by their summed weights.
         rows: Distribution1D,
-        /// Each row's pixels by weight.
+        /// Each row's pixels by weight ([`reach_weight`] of [`sampling_weight`]).
         columns: Vec<Distribution1D>,
         /// The sun, if the image has one, split off for the window technique.
         hot: Option<HotSpot>,
@@ -61,10 +68,12 @@ struct HotSpot {
     threshold: f32,
     /// `K` on the hot pixels.
     fill: Vec3,
-    /// Hot pixel indices `j · width + i`, and a pick among them by `S`'s weight × solid angle.
+    /// The pixels `S` reaches (the hot pixels, and with *Linear* the pixels around them),
+    /// indices `j · width + i` in increasing order, and a pick among them by their
+    /// [`reach_weight`] of `weight(S)` × solid angle.
     pixels: Vec<u32>,
     pick: Distribution1D,
-    /// `∫ weight(S) dω` (before the strength).
+    /// The pick's total, `∫ weight(S) dω` over the reached pixels (before the strength).
     power: f32,
     /// A cap in the map's frame holding every hot pixel: its centre and the sine of its radius.
     centre: Vec3,
@@ -85,7 +94,7 @@ impl Environment {
         let strength = desc.strength.max(0.0);
         let (map, mean_luminance) = match &desc.map {
             EnvMap::Constant(c) => (Map::Constant(*c), luminance(*c)),
-            EnvMap::Image { image, .. } => image_map(image),
+            EnvMap::Image { image, .. } => image_map(image, desc.interpolation),
         };
         // Power onto a sphere of radius r in radiance L from every direction: 4π² r² L
         // (pbrt-v4's uniform infinite light); the image's solid-angle mean luminance stands in.
@@ -127,15 +136,7 @@ impl Environment {
     pub fn radiance(&self, w: Vec3) -> Vec3 {
         match &self.map {
             Map::Constant(c) => *c * self.strength,
-            Map::Image {
-                width,
-                height,
-                pixels,
-                ..
-            } => {
-                let (i, j) = pixel_of(self.to_map(w), *width, *height);
-                pixels[(j * width + i) as usize] * self.strength
-            }
+            Map::Image { .. } => self.pixel_pdf(w).0 * self.strength,
         }
     }
 
@@ -215,13 +216,17 @@ impl Environment {
                 width,
                 height,
                 pixels,
+                interpolation,
                 rows,
                 columns,
                 ..
             } => {
                 let m = self.to_map(w);
                 let (i, j) = pixel_of(m, *width, *height);
-                let le = pixels[(j * width + i) as usize];
+                let le = match interpolation {
+                    Interpolation::Closest => pixels[(j * width + i) as usize],
+                    Interpolation::Linear => bilinear(pixels, *width, *height, m),
+                };
                 let sin_theta = (m.x * m.x + m.z * m.z).sqrt();
                 if sin_theta <= 0.0 {
                     return (le, 0.0);
@@ -235,20 +240,40 @@ impl Environment {
     }
 
     /// The weight [`Self::sample`] gives direction `w`, up to a constant: what a technique
-    /// proportional to the environment within a window follows.
+    /// proportional to the environment within a window follows (with *Linear*, the largest
+    /// weight the filter reads around `w`'s pixel, so that it bounds the filtered radiance).
     pub fn sampling_weight(&self, w: Vec3) -> f32 {
-        sampling_weight(self.radiance(w))
+        self.reached(w, |pixel| sampling_weight(pixel))
     }
 
-    /// The weight of the environment without its sun, `K` (`L` where the image has no hot spot):
-    /// what a window's table follows.
+    /// The weight of the environment without its sun, `K` (`L` where the image has no hot spot),
+    /// as [`Self::sampling_weight`] reads it: what a window's table follows.
     pub fn sky_weight(&self, w: Vec3) -> f32 {
-        let pixel = self.pixel_pdf(w).0;
-        let k = match self.hot() {
-            Some(hot) if hot.excess(pixel).is_some() => hot.fill,
-            _ => pixel,
-        };
-        sampling_weight(k) * self.strength
+        let hot = self.hot();
+        self.reached(w, |pixel| {
+            sampling_weight(match hot {
+                Some(hot) if hot.excess(pixel).is_some() => hot.fill,
+                _ => pixel,
+            })
+        })
+    }
+
+    /// [`reach_weight`] of `weight` at the pixel `w` falls in, times the strength.
+    fn reached(&self, w: Vec3, weight: impl Fn(Vec3) -> f32) -> f32 {
+        match &self.map {
+            Map::Constant(c) => weight(*c) * self.strength,
+            Map::Image {
+                width,
+                height,
+                pixels,
+                interpolation,
+                ..
+            } => {
+                let (i, j) = pixel_of(self.to_map(w), *width, *height);
+                let value = |a: u32, b: u32| weight(pixels[(b * width + a) as usize]);
+                reach_weight(*interpolation, *width, *height, i, j, value) * self.strength
+            }
+        }
     }
 
     fn hot(&self) -> Option<&HotSpot> {
@@ -294,20 +319,32 @@ impl Environment {
         Some(self.to_world(Vec3::new(r * cos_phi, z, r * sin_phi)))
     }
 
-    /// The solid-angle density of [`Self::sample_hot`] at `w`: `weight(S) / power` on a hot
-    /// pixel, else 0 (also without a hot spot).
+    /// The solid-angle density of [`Self::sample_hot`] at `w`: its pick's probability of the
+    /// pixel `w` falls in over that pixel's solid angle, 0 on a pixel it never picks (and
+    /// without a hot spot).
     pub fn hot_pdf(&self, w: Vec3) -> f32 {
-        self.radiance_pdfs(w).2
+        let Map::Image {
+            width,
+            height,
+            hot: Some(hot),
+            ..
+        } = &self.map
+        else {
+            return 0.0;
+        };
+        let (i, j) = pixel_of(self.to_map(w), *width, *height);
+        hot.pdf(j * width + i, *width, *height)
     }
 
-    /// [`Self::radiance_pdf`] and [`Self::hot_pdf`] from one pixel lookup.
+    /// [`Self::radiance_pdf`] and [`Self::hot_pdf`] at once.
     #[inline(always)]
     pub fn radiance_pdfs(&self, w: Vec3) -> (Vec3, f32, f32) {
         let (pixel, p_env) = self.pixel_pdf(w);
-        let p_hot = self
-            .hot()
-            .and_then(|hot| Some(hot.excess(pixel)? / hot.power))
-            .unwrap_or(0.0);
+        let p_hot = if self.hot().is_some() {
+            self.hot_pdf(w)
+        } else {
+            0.0
+        };
         (pixel * self.strength, p_env, p_hot)
     }
 }
@@ -317,6 +354,64 @@ impl HotSpot {
     fn excess(&self, pixel: Vec3) -> Option<f32> {
         hot_excess(pixel, self.threshold, self.fill)
     }
+
+    /// The density of the pick's draws at pixel `index` (`j · width + i`): its pmf over its
+    /// solid angle.
+    fn pdf(&self, index: u32, width: u32, height: u32) -> f32 {
+        let Ok(k) = self.pixels.binary_search(&index) else {
+            return 0.0;
+        };
+        let (z0, z1) = row_cosines(index / width, height);
+        self.pick.pmf(k) / ((TAU / width as f32) * (z0 - z1))
+    }
+}
+
+/// How many pixels around its own a direction's filtered value reads: 1 for *Linear* (the
+/// four nearest centres lie within the 3 × 3 block around it), 0 for *Closest*.
+fn reach(interpolation: Interpolation) -> i64 {
+    match interpolation {
+        Interpolation::Linear => 1,
+        Interpolation::Closest => 0,
+    }
+}
+
+/// The largest `value` over the pixels a direction in pixel `(i, j)` may read
+/// ([`reach`], wrapping as [`bilinear`] does): a bound on the filtered `value` in that pixel.
+fn reach_weight(
+    interpolation: Interpolation,
+    width: u32,
+    height: u32,
+    i: u32,
+    j: u32,
+    value: impl Fn(u32, u32) -> f32,
+) -> f32 {
+    let r = reach(interpolation);
+    let mut most = 0.0f32;
+    for dj in -r..=r {
+        let b = (j as i64 + dj).rem_euclid(height as i64) as u32;
+        for di in -r..=r {
+            let a = (i as i64 + di).rem_euclid(width as i64) as u32;
+            most = most.max(value(a, b));
+        }
+    }
+    most
+}
+
+/// Cycles' bilinear lookup of an environment image (`EXTENSION_REPEAT`): at `(u·w − ½,
+/// v·h − ½)` between the four nearest pixel centres, the pixel indices wrapping in both
+/// directions (across a pole the top row is read with the bottom one, as Cycles does).
+fn bilinear(pixels: &[Vec3], width: u32, height: u32, m: Vec3) -> Vec3 {
+    let (u, v) = map_uv(m);
+    let x = u * width as f32 - 0.5;
+    let y = v * height as f32 - 0.5;
+    let (x0, y0) = (x.floor(), y.floor());
+    let (tx, ty) = (x - x0, y - y0);
+    let wrap = |k: f32, n: u32| (k as i64).rem_euclid(n as i64) as u32;
+    let (i0, i1) = (wrap(x0, width), wrap(x0 + 1.0, width));
+    let (j0, j1) = (wrap(y0, height), wrap(y0 + 1.0, height));
+    let p = |i: u32, j: u32| pixels[(j * width + i) as usize];
+    (p(i0, j0) * (1.0 - tx) + p(i1, j0) * tx) * (1.0 - ty)
+        + (p(i0, j1) * (1.0 - tx) + p(i1, j1) * tx) * ty
 }
 
 /// `weight(L) − weight(fill)` if `weight(L)` is above `threshold`: at load and when drawing
@@ -332,18 +427,23 @@ fn row_cosines(j: u32, height: u32) -> (f32, f32) {
     (theta(j).cos(), theta(j + 1).cos())
 }
 
+/// A map direction's image coordinates: `u` across, `v` down from the top, both in [0, 1].
+fn map_uv(m: Vec3) -> (f32, f32) {
+    (0.5 + m.z.atan2(m.x) / TAU, m.y.clamp(-1.0, 1.0).acos() / PI)
+}
+
 /// The pixel (column, row) a map direction falls in.
 fn pixel_of(m: Vec3, width: u32, height: u32) -> (u32, u32) {
-    let u = 0.5 + m.z.atan2(m.x) / TAU;
-    let v = m.y.clamp(-1.0, 1.0).acos() / PI;
+    let (u, v) = map_uv(m);
     let i = ((u * width as f32) as u32).min(width - 1);
     let j = ((v * height as f32) as u32).min(height - 1);
     (i, j)
 }
 
 /// The image's sampling distribution and its solid-angle mean luminance.
-fn image_map(image: &EnvImage) -> (Map, f32) {
+fn image_map(image: &EnvImage, interpolation: Interpolation) -> (Map, f32) {
     let (w, h) = (image.width, image.height);
+    let weight = |i: u32, j: u32| sampling_weight(image.pixel(i, j));
     let mut columns = Vec::with_capacity(h as usize);
     let mut row_weights = Vec::with_capacity(h as usize);
     let mut luminance_sum = 0.0f64;
@@ -353,7 +453,8 @@ fn image_map(image: &EnvImage) -> (Map, f32) {
         let sin_centre = (0.5 * (theta0 + theta1)).sin();
         // Each pixel's solid angle: 2π/w · (cos θ0 − cos θ1).
         let pixel_solid_angle = (TAU / w as f32) * (theta0.cos() - theta1.cos());
-        let row = Distribution1D::new((0..w).map(|i| sampling_weight(image.pixel(i, j))));
+        let row =
+            Distribution1D::new((0..w).map(|i| reach_weight(interpolation, w, h, i, j, weight)));
         luminance_sum += (0..w)
             .map(|i| f64::from(luminance(image.pixel(i, j)) * pixel_solid_angle))
             .sum::<f64>();
@@ -366,9 +467,10 @@ fn image_map(image: &EnvImage) -> (Map, f32) {
             width: w,
             height: h,
             pixels: image.pixels.clone(),
+            interpolation,
             rows: Distribution1D::new(row_weights),
             columns,
-            hot: hot_spot(image),
+            hot: hot_spot(image, interpolation),
         },
         mean,
     )
@@ -376,7 +478,7 @@ fn image_map(image: &EnvImage) -> (Map, f32) {
 
 /// The image's sun: the pixels above [`HOT_RATIO`] times the mean weight, if they are compact
 /// and hold enough of it ([`HotSpot`]).
-fn hot_spot(image: &EnvImage) -> Option<HotSpot> {
+fn hot_spot(image: &EnvImage, interpolation: Interpolation) -> Option<HotSpot> {
     let (w, h) = (image.width, image.height);
     let solid_angle = |j: u32| {
         let (z0, z1) = row_cosines(j, h);
@@ -426,16 +528,36 @@ fn hot_spot(image: &EnvImage) -> Option<HotSpot> {
     } else {
         Vec3::ZERO
     };
-    let excess = |p: u32| hot_excess(image.pixel(p % w, p / w), threshold, fill).unwrap_or(0.0);
-    let pick = Distribution1D::new(pixels.iter().map(|&p| excess(p) * solid_angle(p / w)));
+    // `S` as the filter reads it: every pixel within reach of a hot one, by the largest excess
+    // within its reach, so that the pick covers wherever the filtered `S` is positive.
+    let r = reach(interpolation);
+    let mut reached: Vec<u32> = pixels
+        .iter()
+        .flat_map(|&p| {
+            let (i, j) = ((p % w) as i64, (p / w) as i64);
+            (-r..=r).flat_map(move |dj| {
+                (-r..=r).map(move |di| {
+                    let a = (i + di).rem_euclid(w as i64) as u32;
+                    let b = (j + dj).rem_euclid(h as i64) as u32;
+                    b * w + a
+                })
+            })
+        })
+        .collect();
+    reached.sort_unstable();
+    reached.dedup();
+    let s_of = |i: u32, j: u32| hot_excess(image.pixel(i, j), threshold, fill).unwrap_or(0.0);
+    let excess = |p: u32| reach_weight(interpolation, w, h, p % w, p / w, s_of);
+    let pick = Distribution1D::new(reached.iter().map(|&p| excess(p) * solid_angle(p / w)));
     let power = pick.total();
-    // The cap: about the weighted mean of the pixels' centres, out to their farthest corner.
+    // The cap: about the weighted mean of the reached pixels' centres, out to the farthest
+    // corner of `pixels` (the test of compactness) and of `reached` (the cap).
     let direction = |u: f32, v: f32| {
         let (sin_theta, cos_theta) = (PI * v).sin_cos();
         let (sin_phi, cos_phi) = (TAU * (u - 0.5)).sin_cos();
         Vec3::new(sin_theta * cos_phi, cos_theta, sin_theta * sin_phi)
     };
-    let centre = pixels
+    let centre = reached
         .iter()
         .map(|&p| {
             let (i, j) = (p % w, p / w);
@@ -445,26 +567,30 @@ fn hot_spot(image: &EnvImage) -> Option<HotSpot> {
         })
         .sum::<Vec3>()
         .try_normalize()?;
-    let cos_radius = pixels
-        .iter()
-        .flat_map(|&p| {
-            let (i, j) = (p % w, p / w);
-            [(0, 0), (1, 0), (0, 1), (1, 1)]
-                .map(|(di, dj)| direction((i + di) as f32 / w as f32, (j + dj) as f32 / h as f32))
-        })
-        .map(|d| d.dot(centre))
-        .fold(1.0f32, f32::min);
-    // A row's height on top: a pixel's sides along its rows bulge past its corners.
-    let radius = cos_radius.clamp(-1.0, 1.0).acos() + PI / h as f32;
+    let radius_of = |set: &[u32]| {
+        let cos_radius = set
+            .iter()
+            .flat_map(|&p| {
+                let (i, j) = (p % w, p / w);
+                [(0, 0), (1, 0), (0, 1), (1, 1)].map(|(di, dj)| {
+                    direction((i + di) as f32 / w as f32, (j + dj) as f32 / h as f32)
+                })
+            })
+            .map(|d| d.dot(centre))
+            .fold(1.0f32, f32::min);
+        // A row's height on top: a pixel's sides along its rows bulge past its corners.
+        cos_radius.clamp(-1.0, 1.0).acos() + PI / h as f32
+    };
+    let (radius, cap_radius) = (radius_of(&pixels), radius_of(&reached));
     let share = f64::from(power) / total;
     (radius <= HOT_MAX_RADIUS && share >= f64::from(HOT_MIN_SHARE)).then(|| HotSpot {
         threshold,
         fill,
-        pixels,
+        pixels: reached,
         pick,
         power,
         centre,
-        sin_radius: radius.sin(),
+        sin_radius: cap_radius.min(PI / 2.0).sin(),
     })
 }
 
@@ -488,6 +614,7 @@ mod tests {
             },
             strength: 1.0,
             rotation_degrees: 0.0,
+            interpolation: Interpolation::Closest,
         };
         let env = Environment::new(&desc, 1.0);
         let up_x = Vec3::new(1.0, 0.3, 0.01).normalize();

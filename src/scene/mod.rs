@@ -439,13 +439,20 @@ impl Scene {
         if overrides.is_empty() {
             return Ok(scene);
         }
+        let mut warnings = Vec::new();
         let environment = overrides
-            .apply(scene.desc.environment.as_ref())
+            .apply(scene.desc.environment.as_ref(), &mut warnings)
             .map_err(|error| SceneError::Environment {
                 file: scene.file_label(),
                 error,
             })?;
-        scene.with_environment(environment)
+        let mut scene = scene.with_environment(environment)?;
+        if !warnings.is_empty() {
+            let mut desc = (*scene.desc).clone();
+            desc.warnings.extend(warnings);
+            scene.desc = Arc::new(desc);
+        }
+        Ok(scene)
     }
 
     /// The same geometry with other portals (an edit); the BVH is shared, not rebuilt.
@@ -683,13 +690,17 @@ impl bevy_mikktspace::Geometry for Mikk<'_> {
             .to_array()
     }
 
+    /// Blender's texture coordinates, `(u, 1 − v)`: glTF's `v` runs down the image, Blender's
+    /// up, and a normal map's green (+Y) is up the image in both. MikkTSpace's bitangent
+    /// follows increasing `v`; on Blender's `v` it points up the image, as Blender's (and
+    /// Cycles') does for the same file.
     fn tex_coord(&self, face: usize, vert: usize) -> [f32; 2] {
         let i = self.vertex(face, vert);
-        self.mesh.texcoords[self.set]
+        let uv = self.mesh.texcoords[self.set]
             .get(i)
             .copied()
-            .unwrap_or(Vec2::ZERO)
-            .to_array()
+            .unwrap_or(Vec2::ZERO);
+        [uv.x, 1.0 - uv.y]
     }
 
     fn set_tangent(

@@ -1,20 +1,23 @@
 //! The environment in a glTF scene's `extras` (where Blender writes scene custom properties):
 //! `"environment"` (an image path relative to the file, or `[r, g, b]`),
-//! `"environment_strength"` and `"environment_rotation"` (degrees about +Y).
+//! `"environment_strength"`, `"environment_rotation"` (degrees about +Y) and
+//! `"environment_interpolation"` (`"linear"`, the default, or `"closest"`).
 
 use super::*;
 use crate::asset::environment::{
-    EnvImage, EnvMap, EnvironmentDesc, check_numbers, image_bytes, map_from_text,
+    EnvImage, EnvMap, EnvironmentDesc, Interpolation, check_numbers, image_bytes, map_from_text,
 };
 
 pub const ENVIRONMENT_KEY: &str = "environment";
 pub const ENVIRONMENT_STRENGTH_KEY: &str = "environment_strength";
 pub const ENVIRONMENT_ROTATION_KEY: &str = "environment_rotation";
+pub const ENVIRONMENT_INTERPOLATION_KEY: &str = "environment_interpolation";
 
 /// The environment the used scene's extras describe, if they name one.
 pub(super) fn scene_environment(
     file: &Path,
     root: &json::Root,
+    warnings: &mut Vec<String>,
 ) -> Result<Option<EnvironmentDesc>, GltfError> {
     let Some(s) = used_scene(root) else {
         return Ok(None);
@@ -34,7 +37,7 @@ pub(super) fn scene_environment(
     let field = |key: &str| format!("{at}.{key}");
     let base = file.parent();
     let map = match value {
-        Value::String(text) if !text.is_empty() => map_from_text(text, base)
+        Value::String(text) if !text.is_empty() => map_from_text(text, base, warnings)
             .map_err(|e| invalid(file, field(ENVIRONMENT_KEY), e.to_string()))?,
         Value::Array(items) if items.len() == 3 => {
             let c: Vec<f64> = items.iter().filter_map(Value::as_f64).collect();
@@ -71,10 +74,24 @@ pub(super) fn scene_environment(
     let rotation_degrees = number(ENVIRONMENT_ROTATION_KEY, 0.0)?;
     check_numbers(strength, rotation_degrees)
         .map_err(|e| invalid(file, at.clone(), e.to_string()))?;
+    let interpolation = match extras.get(ENVIRONMENT_INTERPOLATION_KEY) {
+        None => Interpolation::default(),
+        Some(v) => v
+            .as_str()
+            .and_then(Interpolation::from_name)
+            .ok_or_else(|| {
+                invalid(
+                    file,
+                    field(ENVIRONMENT_INTERPOLATION_KEY),
+                    format!("must be \"linear\" or \"closest\", found {v}"),
+                )
+            })?,
+    };
     Ok(Some(EnvironmentDesc {
         map,
         strength,
         rotation_degrees,
+        interpolation,
     }))
 }
 
@@ -101,6 +118,10 @@ pub(super) fn environment_extras(
     extras.insert(
         ENVIRONMENT_ROTATION_KEY.to_owned(),
         json_f32(environment.rotation_degrees),
+    );
+    extras.insert(
+        ENVIRONMENT_INTERPOLATION_KEY.to_owned(),
+        Value::from(environment.interpolation.name()),
     );
     Ok(extras)
 }
