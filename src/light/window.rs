@@ -63,10 +63,9 @@ struct SunView {
     bounds: [f64; 4],
 }
 
-/// Points on the cap's rim for its box; between them the rim bulges past their box by less
-/// than `1 − cos(π / 256)` of its extent, covered by widening the box by [`SUN_BOX_MARGIN`] of it.
-const SUN_RIM_POINTS: usize = 256;
-const SUN_BOX_MARGIN: f64 = 1e-3;
+/// The sun box's widening for rounding, relative to its extent: its sides are computed
+/// exactly ([`gnomonic_range`]).
+const SUN_BOX_MARGIN: f64 = 1e-9;
 
 /// Axes of the window's parameterisation: `s`, `t` in its plane, `out = −normal` through it.
 #[derive(Clone, Copy, Debug)]
@@ -382,15 +381,11 @@ impl SunView {
         }
         let u = c.any_orthonormal_vector();
         let v = c.cross(u);
-        let bounds = bounding_box((0..SUN_RIM_POINTS).map(|k| {
-            let phi = std::f64::consts::TAU * k as f64 / SUN_RIM_POINTS as f64;
-            let d = cos_r * c + sin_r * (phi.cos() * u + phi.sin() * v);
-            let dz = d.dot(frame.out);
-            (d.dot(frame.s) / dz, d.dot(frame.t) / dz)
-        }));
-        let (wa, wb) = (bounds[1] - bounds[0], bounds[3] - bounds[2]);
-        let [a0, a1, b0, b1] = bounds;
-        let margin = |w: f64| SUN_BOX_MARGIN * w + 1e-9;
+        let rim = [cos_r * c, sin_r * u, sin_r * v];
+        let (a0, a1) = gnomonic_range(rim, frame.s, frame.out)?;
+        let (b0, b1) = gnomonic_range(rim, frame.t, frame.out)?;
+        let (wa, wb) = (a1 - a0, b1 - b0);
+        let margin = |w: f64| SUN_BOX_MARGIN * w + 1e-12;
         Some(SunView {
             centre,
             sin_radius,
@@ -402,6 +397,26 @@ impl SunView {
             ],
         })
     }
+}
+
+/// The least and greatest of `(d · axis) / (d · out)` over the circle `d(φ) = p + cos φ · q +
+/// sin φ · r` (`[p, q, r]`, a cap's rim), where `d · out > 0` all round: exactly, not from
+/// points on the rim (between which the rim bulges, most when the cap nears the window's
+/// plane). With `A + B cos φ + C sin φ` over `D + E cos φ + F sin φ`, the value `k` is taken
+/// somewhere on the rim where `|A − kD| ≤ |(B − kE, C − kF)|`, and its extremes are the roots of
+/// `(A − kD)² = (B − kE)² + (C − kF)²`.
+fn gnomonic_range([p, q, r]: [DVec3; 3], axis: DVec3, out: DVec3) -> Option<(f64, f64)> {
+    let (a, b, c) = (p.dot(axis), q.dot(axis), r.dot(axis));
+    let (d, e, f) = (p.dot(out), q.dot(out), r.dot(out));
+    let k2 = d * d - e * e - f * f;
+    let k1 = a * d - b * e - c * f;
+    let k0 = a * a - b * b - c * c;
+    // d · out > 0 on the whole rim exactly when D > |(E, F)|, that is k2 > 0 with D > 0.
+    if !(d > 0.0 && k2 > 0.0) {
+        return None;
+    }
+    let root = (k1 * k1 - k2 * k0).max(0.0).sqrt();
+    Some(((k1 - root) / k2, (k1 + root) / k2))
 }
 
 impl WindowFrame {
@@ -470,5 +485,78 @@ impl WindowFrame {
     /// The unit direction at gnomonic coordinates `(a, b)` (`a = ω·s / ω·out`, likewise `b`).
     fn direction(&self, a: f64, b: f64) -> DVec3 {
         (a * self.s + b * self.t + self.out).normalize()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Caps of radius 0.2 whose rims pass 1e-2 to 1e-4 rad in front of the window's plane, at
+    /// several azimuths: every point of a dense rim lies within [`gnomonic_range`]'s extremes,
+    /// which the dense rim reaches (so they are tight). The box of 256 rim points widened by
+    /// 1e-3 of its extent, the earlier rule, misses part of some of these caps: the case the
+    /// exact range is for.
+    #[test]
+    fn the_sun_box_holds_a_cap_near_the_window_plane() {
+        let (s, t, out) = (DVec3::X, DVec3::Y, DVec3::Z);
+        let radius = 0.2f64;
+        let mut old_rule_failed = 0;
+        for gap in [1e-2, 1e-3, 1e-4] {
+            for azimuth in [0.1f64, 0.7, 1.9, 2.6] {
+                let elevation = radius + gap;
+                let horizontal = DVec3::new(azimuth.cos(), azimuth.sin(), 0.0);
+                let c = horizontal * elevation.cos() + out * elevation.sin();
+                let u = c.any_orthonormal_vector();
+                let v = c.cross(u);
+                let rim = [radius.cos() * c, radius.sin() * u, radius.sin() * v];
+                let (a0, a1) = gnomonic_range(rim, s, out).unwrap();
+                let (b0, b1) = gnomonic_range(rim, t, out).unwrap();
+                let point = |phi: f64| {
+                    let d = rim[0] + phi.cos() * rim[1] + phi.sin() * rim[2];
+                    (d.dot(s) / d.dot(out), d.dot(t) / d.dot(out))
+                };
+                let dense = 1_000_000;
+                let mut seen = [f64::MAX, f64::MIN, f64::MAX, f64::MIN];
+                for k in 0..dense {
+                    let (a, b) = point(std::f64::consts::TAU * k as f64 / dense as f64);
+                    let slack = 1e-9 * (a1 - a0).max(b1 - b0);
+                    assert!(
+                        a >= a0 - slack && a <= a1 + slack,
+                        "α {a} outside [{a0}, {a1}]"
+                    );
+                    assert!(
+                        b >= b0 - slack && b <= b1 + slack,
+                        "β {b} outside [{b0}, {b1}]"
+                    );
+                    seen = [
+                        seen[0].min(a),
+                        seen[1].max(a),
+                        seen[2].min(b),
+                        seen[3].max(b),
+                    ];
+                }
+                let exact = [a0, a1, b0, b1];
+                let extent = (a1 - a0).max(b1 - b0);
+                for (x, e) in seen.iter().zip(exact) {
+                    assert!(
+                        (x - e).abs() <= 1e-6 * extent,
+                        "gap {gap}: {seen:?} vs {exact:?}"
+                    );
+                }
+                // The earlier rule: the box of 256 rim points, widened by 1e-3 of its extent.
+                let old =
+                    bounding_box((0..256).map(|k| point(std::f64::consts::TAU * k as f64 / 256.0)));
+                let widen = |lo: f64, hi: f64| (lo - 1e-3 * (hi - lo), hi + 1e-3 * (hi - lo));
+                let (oa0, oa1) = widen(old[0], old[1]);
+                let (ob0, ob1) = widen(old[2], old[3]);
+                old_rule_failed += usize::from(a1 > oa1 || a0 < oa0 || b1 > ob1 || b0 < ob0);
+            }
+        }
+        assert!(old_rule_failed > 0, "the 256-point boxes held every cap");
+        let (u, v) = (DVec3::Y, DVec3::Z);
+        // A cap that reaches behind the plane has no box.
+        let low = [radius.cos() * DVec3::X, radius.sin() * u, radius.sin() * v];
+        assert!(gnomonic_range(low, s, out).is_none());
     }
 }
