@@ -157,6 +157,51 @@ impl SurfaceTextures {
     }
 }
 
+/// Cycles' `ensure_valid_reflection` (Blender 3.4, `intern/cycles`), as its normal map node
+/// applies it: a
+/// shading normal `n` that would mirror the view direction `wo` below the surface (`ng`,
+/// facing `wo`) is bent toward `ng`, in the plane of `n` and `ng`, just far enough that the
+/// reflection of `wo` rises `min(0.9 · ng·wo, 0.01)` above it. Cycles applies it to every
+/// normal-mapped normal; steep bumps seen from the side then shade brighter than the plain
+/// rule (the mapped normal as is), as in Blender.
+pub fn ensure_valid_reflection(ng: Vec3, wo: Vec3, n: Vec3) -> Vec3 {
+    let r = 2.0 * n.dot(wo) * n - wo;
+    let threshold = (0.9 * ng.dot(wo)).min(0.01);
+    if ng.dot(r) >= threshold {
+        return n;
+    }
+    // In the plane of n and ng: x along n's tangential part, z along ng.
+    let x = (n - n.dot(ng) * ng).normalize_or_zero();
+    let (ix, iz) = (wo.dot(x), wo.dot(ng));
+    let (ix2, iz2) = (ix * ix, iz * iz);
+    let a = ix2 + iz2;
+    let b = (ix2 * (a - threshold * threshold)).max(0.0).sqrt();
+    let c = iz * threshold + a;
+    let fac = 0.5 / a;
+    let (n1_z2, n2_z2) = (fac * (b + c), fac * (c - b));
+    let valid = |z2: f32| z2 > 1e-5 && z2 <= 1.0 + 1e-5;
+    let normal = |z2: f32| ((1.0 - z2).max(0.0).sqrt(), z2.max(0.0).sqrt());
+    let (valid1, valid2) = (valid(n1_z2), valid(n2_z2));
+    let (nx, nz) = match (valid1, valid2) {
+        (true, true) => {
+            let (a1, b1) = normal(n1_z2);
+            let (a2, b2) = normal(n2_z2);
+            let r1 = 2.0 * (a1 * ix + b1 * iz) * b1 - iz;
+            let r2 = 2.0 * (a2 * ix + b2 * iz) * b2 - iz;
+            let pick_first = if r1 >= 1e-5 && r2 >= 1e-5 {
+                r1 < r2
+            } else {
+                r1 > r2
+            };
+            if pick_first { (a1, b1) } else { (a2, b2) }
+        }
+        (true, false) => normal(n1_z2),
+        (false, true) => normal(n2_z2),
+        (false, false) => return ng,
+    };
+    (nx * x + nz * ng).normalize_or(ng)
+}
+
 /// A normal texture's texel (linear RGB in [0, 1]) as a unit tangent-space normal, x and y
 /// scaled by `normalTexture.scale` as the glTF specification says.
 pub fn tangent_space_normal(texel: Vec4, scale: f32) -> Vec3 {

@@ -155,7 +155,8 @@ pub struct MeshDesc {
     pub node_name: String,
     pub material: usize,
     pub positions: Vec<Vec3>,
-    /// Per-vertex shading normals, same length as `positions` (computed when absent).
+    /// Per-vertex shading normals, same length as `positions` (flat, with corners unshared,
+    /// where the file has none).
     pub normals: Vec<Vec3>,
     pub indices: Vec<[u32; 3]>,
     /// `TEXCOORD_0` and `TEXCOORD_1`, each empty or one per position.

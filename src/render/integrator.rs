@@ -151,9 +151,32 @@ impl<'a> Integrator<'a> {
         &self.sky
     }
 
-    /// A ray origin just off the surface at `p` on the side of `n`, scaled to the coordinates.
-    pub fn offset(p: Vec3, n: Vec3) -> Vec3 {
-        p + n * (2e-4 * (1.0 + p.abs().max_element()))
+    /// A ray origin just off the surface at `p` on the side of `n`: by [`Self::epsilon`], so
+    /// that a scene gives the same image in any units.
+    pub fn offset(p: Vec3, n: Vec3, scale: f32) -> Vec3 {
+        p + n * Self::epsilon(p, scale)
+    }
+
+    /// How far off a surface at `p` a ray starts, in a scene of size `scale`
+    /// ([`crate::scene::Geometry::scale`]): 2e-4 of `p`'s largest coordinate, above the
+    /// rounding of a hit point far from the origin, and 2e-4 more, or 2e-5 of the scene's size
+    /// in a scene smaller than 10 units, so that a small scene is not lifted off its own
+    /// surfaces (a room in millimetres renders as in metres).
+    pub fn epsilon(p: Vec3, scale: f32) -> f32 {
+        2e-4 * p.abs().max_element() + (2e-5 * scale).min(2e-4)
+    }
+
+    /// How far short of a light its shadow rays stop, so that the light's own triangles do not
+    /// occlude it: 1e-5, or 1e-6 of the scene's size in a scene smaller than 10 units.
+    fn shadow_gap(scale: f32) -> f32 {
+        (1e-6 * scale).min(1e-5)
+    }
+
+    /// Where rays leave a shading point at `p` seen along `-wo` (`ng` facing `wo`): off the
+    /// surface, and back along the ray that arrived. That segment is empty, so in a corner,
+    /// where `p` may round to just behind the other wall, the origin is still in front of both.
+    pub fn shading_origin(p: Vec3, ng: Vec3, wo: Vec3, scale: f32) -> Vec3 {
+        p + (ng + wo) * Self::epsilon(p, scale)
     }
 
     /// Radiance arriving at `origin` from direction `-dir`.
@@ -281,7 +304,8 @@ impl<'a> Integrator<'a> {
             let mapped = surface
                 .zip(point.as_ref())
                 .and_then(|(s, q)| s.mapped_normal(q, ns));
-            let Some(mut shading) = Self::shading(p, ns, ng, wo, material, mapped) else {
+            let scale = geometry.scale();
+            let Some(mut shading) = Self::shading(p, ns, ng, wo, material, mapped, scale) else {
                 break;
             };
             // A textured material is evaluated at the point, for this shading point's `wo`.
@@ -373,7 +397,12 @@ impl<'a> Integrator<'a> {
         }
         stats.shadow_rays += 1;
         // Stop short of the light so that its own triangles do not occlude it.
-        if tracer.occluded(o, d, 0.0, t * (1.0 - 1e-4) - 1e-5) {
+        if tracer.occluded(
+            o,
+            d,
+            0.0,
+            t * (1.0 - 1e-4) - Self::shadow_gap(geometry.scale()),
+        ) {
             return Vec3::ZERO;
         }
         match prev {
@@ -436,9 +465,8 @@ impl<'a> Integrator<'a> {
 
     /// The shading frame on the side the ray came from, or `None` where the shading normal
     /// makes the outgoing direction go below the surface. `mapped` is the normal map's normal
-    /// (for the front side); it is used only where it stays on the side of the geometric
-    /// normal that `wo` is on and keeps `wo` above its horizon, else the interpolated normal
-    /// is (a normal map must not turn a visible point black). Light from below the geometric
+    /// (for the front side), bent as Cycles bends it where it would mirror `wo` below the
+    /// surface ([`crate::surface::ensure_valid_reflection`]). Light from below the geometric
     /// surface is refused separately (`wi · ng > 0`), so a tilted normal never leaks light.
     #[inline(always)]
     fn shading<'m>(
@@ -448,19 +476,21 @@ impl<'a> Integrator<'a> {
         wo: Vec3,
         material: &'m Material,
         mapped: Option<Vec3>,
+        scale: f32,
     ) -> Option<Shading<'m>> {
         let back = ng.dot(wo) < 0.0;
         let ng = if back { -ng } else { ng };
         let ns = if ns == Vec3::ZERO { ng } else { ns };
         let ns = if ns.dot(ng) < 0.0 { -ns } else { ns };
+        // A mapped normal is bent as Cycles bends it (`surface::ensure_valid_reflection`).
         let ns = match mapped.map(|n| if back { -n } else { n }) {
-            Some(n) if n.dot(ng) > 0.0 && n.dot(wo) > 1e-4 => n,
-            _ => ns,
+            Some(n) => crate::surface::ensure_valid_reflection(ng, wo, n),
+            None => ns,
         };
         let frame = Frame::from_normal(ns);
         let wo_local = frame.to_local(wo);
         (wo_local.z > 0.0).then(|| Shading {
-            x: Self::offset(p, ng),
+            x: Self::shading_origin(p, ng, wo, scale),
             ng,
             frame,
             wo_local,
@@ -701,7 +731,7 @@ impl<'a> Integrator<'a> {
             _ => sample.le,
         };
         // Stop short of the light so that its own triangles do not occlude it.
-        let tmax = dist * (1.0 - 1e-4) - 1e-5;
+        let tmax = dist * (1.0 - 1e-4) - Self::shadow_gap(self.scene.geometry.scale());
         let light_pdf = light_prob * sample.pdf;
         Self::weighted(tracer, s, sample.wi, le, light_pdf, tmax, stats)
     }

@@ -126,7 +126,7 @@ fn classify_ray(
     let (p, _) = tri.point(hit.bary);
     let ng = tri.geometric_normal();
     // Classify where shading happens: just off the surface, on the camera's side.
-    let x = Integrator::offset(p, if ng.dot(d) > 0.0 { -ng } else { ng });
+    let x = Integrator::offset(p, if ng.dot(d) > 0.0 { -ng } else { ng }, g.scale());
     let classify = |portal: &crate::light::portal::Portal| {
         if brute_force {
             portal.classify_brute_force(x)

@@ -542,6 +542,11 @@ pub(super) fn world_mesh(
     node_name: String,
     material: usize,
 ) -> Option<MeshDesc> {
+    let geometry = if geometry.normals.is_none() {
+        flat(geometry)
+    } else {
+        geometry
+    };
     let linear = Mat3::from_mat4(world_from_local);
     let mirrors = linear.determinant() < 0.0;
     let normal_from_local = if mirrors {
@@ -606,6 +611,42 @@ pub(super) fn world_mesh(
         texcoords: [uv0.unwrap_or_default(), uv1.unwrap_or_default()],
         tangents,
     })
+}
+
+/// Without `NORMAL`, glTF (3.7.2.1) asks for flat normals, and for `TANGENT` to be ignored:
+/// every triangle gets corners of its own, with its face's normal (front by winding; zero
+/// for a degenerate face, which [`world_mesh`] then fills in).
+fn flat(geometry: Geometry) -> Geometry {
+    let Geometry {
+        positions,
+        triangles,
+        texcoords,
+        ..
+    } = geometry;
+    let corner = |i: u32| positions.get(i as usize).copied().unwrap_or(Vec3::ZERO);
+    let mut flat_positions = Vec::with_capacity(3 * triangles.len());
+    let mut normals = Vec::with_capacity(3 * triangles.len());
+    for t in &triangles {
+        let [a, b, c] = t.map(corner);
+        let n = (b - a).cross(c - a).normalize_or_zero();
+        flat_positions.extend([a, b, c]);
+        normals.extend([n; 3]);
+    }
+    let texcoords = texcoords.map(|uvs| {
+        uvs.map(|uvs| {
+            let uv = |i: u32| uvs.get(i as usize).copied().unwrap_or(Vec2::ZERO);
+            triangles.iter().flat_map(|t| t.map(uv)).collect()
+        })
+    });
+    Geometry {
+        positions: flat_positions,
+        normals: Some(normals),
+        triangles: (0..triangles.len() as u32)
+            .map(|k| [3 * k, 3 * k + 1, 3 * k + 2])
+            .collect(),
+        texcoords,
+        tangents: None,
+    }
 }
 
 /// Area-weighted vertex normals from the faces (front by winding); +Z where undefined.
