@@ -155,8 +155,9 @@ fn assert_same(name: &str, file: &SceneDesc, code: &SceneDesc) {
         (None, None) => {}
         (Some(a), Some(b)) => {
             assert_eq!(
-                (a.strength, a.rotation_degrees),
-                (b.strength, b.rotation_degrees)
+                (a.strength, a.rotation_degrees, a.interpolation),
+                (b.strength, b.rotation_degrees, b.interpolation),
+                "{name}: environment"
             );
             match (&a.map, &b.map) {
                 (EnvMap::Constant(x), EnvMap::Constant(y)) => assert!(close(*x, *y)),

@@ -860,3 +860,110 @@ fn inputs_that_once_crashed_the_loader_give_errors() {
     }
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
+
+/// A sky-lit scene with its side file mutated: a floor under an environment image, the image
+/// (`.exr` or `.hdr`) damaged by bit flips (mostly in its header), truncations, and header
+/// sizes replaced by huge ones. Every case must end with a scene (negative or non-finite
+/// pixels are read as 0, with a warning) or an error naming the scene's file, within the same
+/// time and allocation bounds as the other mutants, the image's bytes counted as input.
+#[test]
+fn mutated_environment_images_load_or_fail_cleanly_within_bounds() {
+    use portalview::asset::builtin::flat_mesh;
+    use portalview::asset::desc::{MaterialDesc, SceneDesc};
+    use portalview::asset::environment::{EnvImage, EnvMap, EnvironmentDesc, hdr_bytes};
+    use portalview::asset::gltf::export_glb;
+    use std::sync::Arc;
+
+    let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let dir = temp_dir("fuzz-images");
+    let mut rng = Random(Rng::new(SEED, 7));
+    let (width, height) = (64u32, 32u32);
+    let pixels = (0..width * height)
+        .map(|k| glam::Vec3::new((k % 7) as f32, (k % 5) as f32 * 0.5, 1.0 + (k % 3) as f32))
+        .collect();
+    let image = EnvImage {
+        width,
+        height,
+        pixels,
+    };
+    let clean: Vec<(&str, Vec<u8>)> = vec![
+        (
+            "sky.exr",
+            portalview::io::exr_bytes(width, height, &image.pixels).unwrap(),
+        ),
+        ("sky.hdr", hdr_bytes(&image).unwrap()),
+    ];
+    let runner = Runner::new();
+    let mut failures = Vec::new();
+    let (mut loaded, mut case) = (0, 0u64);
+    for (name, bytes) in &clean {
+        fs::write(dir.join(name), bytes).unwrap();
+        let glb = dir.join(format!("room-{name}.glb"));
+        let desc = SceneDesc {
+            name: "room".into(),
+            materials: vec![MaterialDesc::diffuse("floor", glam::Vec3::splat(0.5))],
+            meshes: vec![flat_mesh(
+                "floor",
+                0,
+                &[vec![
+                    glam::Vec3::new(-1.0, 0.0, -1.0),
+                    glam::Vec3::new(-1.0, 0.0, 1.0),
+                    glam::Vec3::new(1.0, 0.0, 1.0),
+                    glam::Vec3::new(1.0, 0.0, -1.0),
+                ]],
+            )],
+            environment: Some(EnvironmentDesc {
+                map: EnvMap::Image {
+                    file: Some(dir.join(name)),
+                    image: Arc::new(image.clone()),
+                },
+                ..EnvironmentDesc::constant(glam::Vec3::ONE)
+            }),
+            ..SceneDesc::default()
+        };
+        export_glb(&desc, &glb).unwrap();
+        let glb_bytes = fs::metadata(&glb).unwrap().len() as usize;
+        let header = bytes
+            .len()
+            .min(if name.ends_with(".exr") { 400 } else { 80 });
+        for _ in 0..300 {
+            let mut mutated = bytes.clone();
+            match rng.below(4) {
+                0 => flip_bits(&mut mutated, 0..header, &mut rng),
+                1 => {
+                    let len = mutated.len();
+                    flip_bits(&mut mutated, 0..len, &mut rng);
+                }
+                2 => mutated.truncate(rng.below(mutated.len())),
+                _ => {
+                    // A huge size in the header: the EXR's data window, the HDR's resolution.
+                    let huge = [1 << 14, 30_000, 1 << 20, i32::MAX as usize][rng.below(4)];
+                    if name.ends_with(".exr") {
+                        let key = b"dataWindow\0box2i\0";
+                        if let Some(at) = mutated.windows(key.len()).position(|w| w == key) {
+                            let at = at + key.len() + 4 + 8 + 4 * rng.below(2);
+                            mutated[at..at + 4].copy_from_slice(&(huge as i32).to_le_bytes());
+                        }
+                    } else {
+                        let text = String::from_utf8_lossy(&mutated).into_owned();
+                        if let Some(at) = text.find("-Y 32 +X 64") {
+                            let line = format!("-Y {huge} +X {huge}");
+                            mutated.splice(at..at + "-Y 32 +X 64".len(), line.bytes());
+                        }
+                    }
+                }
+            }
+            fs::write(dir.join(name), &mutated).unwrap();
+            let outcome = runner.run(case, &glb);
+            loaded += usize::from(outcome.error.is_none() && outcome.panic.is_none());
+            for v in violations(&glb, glb_bytes + mutated.len(), &outcome) {
+                failures.push(format!("case {case} ({name}): {v}"));
+            }
+            case += 1;
+        }
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+    // Not vacuous: some damaged images still load (flips in pixel data), most do not.
+    assert!(loaded > 10 && loaded < 550, "{loaded} of 600 loaded");
+    let _ = fs::remove_dir_all(&dir);
+}

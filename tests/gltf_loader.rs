@@ -1783,3 +1783,114 @@ fn textured_export_round_trips() {
     );
     let _ = fs::remove_dir_all(&dir);
 }
+
+/// A cube of 8 shared vertices without `NORMAL`: glTF (3.7.2.1) asks for flat normals, so
+/// every triangle's corners carry its face's normal,
+/// and each face shades as a flat Lambertian surface under a distant light, `ρ/π · E · cos θ`
+/// at every point of it, its centre and its corners alike (averaged vertex normals tilt
+/// toward the corners, which changes `cos θ` there).
+#[test]
+fn a_mesh_without_normals_is_shaded_flat() {
+    use portalview::render::integrator::{Integrator, RenderSettings};
+    use portalview::render::stats::Stats;
+    use portalview::sampling::{Rng, Sampler};
+    use portalview::scene::Scene;
+
+    let dir = temp_dir("flat");
+    let mut bin = Bin::default();
+    let corners: Vec<[f32; 3]> = (0..8)
+        .map(|k| [(k & 1) as f32, ((k >> 1) & 1) as f32, ((k >> 2) & 1) as f32])
+        .collect();
+    let positions = bin.vec3s(&corners);
+    // Outward windings of the six faces (x = 0, x = 1, y = 0, y = 1, z = 0, z = 1).
+    let faces: [[u16; 4]; 6] = [
+        [0, 4, 6, 2],
+        [1, 3, 7, 5],
+        [0, 1, 5, 4],
+        [2, 6, 7, 3],
+        [0, 2, 3, 1],
+        [4, 5, 7, 6],
+    ];
+    let triangles: Vec<u16> = faces
+        .iter()
+        .flat_map(|[a, b, c, d]| [*a, *b, *c, *a, *c, *d])
+        .collect();
+    let indices = bin.indices(&triangles);
+    fs::write(dir.join("cube.bin"), &bin.bytes).unwrap();
+    // The light arrives along (−1, −2, −0.5)/|…|: it falls on the top, the +x and the +z faces.
+    let light_dir = Vec3::new(-1.0, -2.0, -0.5).normalize();
+    let rotation = Quat::from_rotation_arc(Vec3::NEG_Z, light_dir);
+    let doc = json!({
+        "asset": {"version": "2.0"},
+        "extensionsUsed": ["KHR_lights_punctual", "KHR_materials_specular"],
+        "extensions": {"KHR_lights_punctual": {"lights": [
+            {"type": "directional", "intensity": 3.0}
+        ]}},
+        "buffers": [{"uri": "cube.bin", "byteLength": bin.bytes.len()}],
+        "bufferViews": bin.views,
+        "accessors": bin.accessors,
+        // Blender's Lambertian material: Specular 0.
+        "materials": [{
+            "pbrMetallicRoughness": {"baseColorFactor": [0.5, 0.5, 0.5, 1.0], "metallicFactor": 0.0, "roughnessFactor": 1.0},
+            "extensions": {"KHR_materials_specular": {"specularColorFactor": [0.0, 0.0, 0.0]}}
+        }],
+        "meshes": [{"name": "Cube", "primitives": [{
+            "attributes": {"POSITION": positions},
+            "indices": indices,
+            "material": 0
+        }]}],
+        "nodes": [
+            {"name": "Cube", "mesh": 0},
+            {"name": "Sun", "rotation": rotation.to_array(), "extensions": {"KHR_lights_punctual": {"light": 0}}}
+        ],
+        "scenes": [{"nodes": [0, 1]}],
+        "scene": 0
+    });
+    let path = dir.join("cube.gltf");
+    write_json(&path, &doc);
+    let desc = load_gltf(&path).unwrap();
+    let mesh = &desc.meshes[0];
+    assert_eq!(mesh.indices.len(), 12);
+    assert!(
+        mesh.tangents.is_empty(),
+        "TANGENT is ignored without NORMAL"
+    );
+    for t in 0..12 {
+        let face = geometric_normal(mesh, t);
+        for &i in &mesh.indices[t] {
+            assert!(close(mesh.normals[i as usize], face), "triangle {t}");
+        }
+    }
+
+    // Lambert under the distant light, at the centre and near the corners of each lit face.
+    let scene = Scene::from_desc(desc, "cube").unwrap();
+    let integrator = Integrator::new(&scene, RenderSettings::default());
+    // 3 lx is 3/683 W/m² (`light::punctual`); the albedo is 0.5.
+    let (e, albedo) = (3.0 / 683.0, 0.5);
+    for (normal, centre, u, v) in [
+        (Vec3::Y, Vec3::new(0.5, 1.0, 0.5), Vec3::X, Vec3::Z),
+        (Vec3::X, Vec3::new(1.0, 0.5, 0.5), Vec3::Y, Vec3::Z),
+        (Vec3::Z, Vec3::new(0.5, 0.5, 1.0), Vec3::X, Vec3::Y),
+    ] {
+        let expected = albedo / std::f32::consts::PI * e * normal.dot(-light_dir);
+        for (a, b) in [
+            (0.0, 0.0),
+            (0.45, 0.45),
+            (-0.45, 0.45),
+            (0.45, -0.45),
+            (-0.45, -0.45),
+        ] {
+            let x = centre + a * u + b * v;
+            let eye = x + normal * 2.0 + u * 0.3;
+            let mut rng = Sampler::from(Rng::new(1, 0));
+            let l =
+                integrator.radiance(eye, (x - eye).normalize(), &mut rng, &mut Stats::default());
+            assert!(
+                (l.x - expected).abs() <= 1e-3 * expected,
+                "face {normal} at ({a}, {b}): {} vs {expected}",
+                l.x
+            );
+        }
+    }
+    fs::remove_dir_all(&dir).unwrap();
+}

@@ -89,11 +89,19 @@ fn agrees((mean, se): (f64, f64), expected: f64) -> bool {
     (mean - expected).abs() <= 4.0 * se + ROUND_OFF * expected.abs().max(1e-3)
 }
 
+/// The shading point the renderer uses for floor point `x` seen by [`floor_radiance`]'s camera
+/// ray (from `x + (0.3, 1, 0.2)`): lifted off the floor and back toward the eye by its ray
+/// offset.
+fn shading_point(scene: &Scene, x: Vec3) -> Vec3 {
+    let wo = Vec3::new(0.3, 1.0, 0.2).normalize();
+    Integrator::shading_origin(x, Vec3::Y, wo, scene.geometry.scale())
+}
+
 /// `I · cos θ / d²` at floor point `x` (normal +y) from a lamp at `p`, times `extra`; taken
 /// at the shading point the renderer uses, `x` lifted off the floor by its ray offset (which
 /// matters where the spot's falloff or the range window is steep).
-fn inverse_square(i: f32, p: Vec3, x: Vec3, extra: f32) -> f64 {
-    let v = p - Integrator::offset(x, Vec3::Y);
+fn inverse_square(scene: &Scene, i: f32, p: Vec3, x: Vec3, extra: f32) -> f64 {
+    let v = p - shading_point(scene, x);
     f64::from(i * extra * (v.y / v.length()) / v.length_squared())
 }
 
@@ -111,7 +119,7 @@ fn point_lamp_irradiance_follows_the_inverse_square_law() {
         Vec3::new(-2.0, 0.0, 1.5),
         Vec3::new(3.0, 0.0, -4.0),
     ] {
-        let expected = inverse_square(i, p, x, 1.0) / f64::from(PI);
+        let expected = inverse_square(&scene, i, p, x, 1.0) / f64::from(PI);
         let estimate = radiance(&scene, Strategy::Antishadow, x, 64);
         assert!(
             estimate.1 < 1e-6,
@@ -142,9 +150,9 @@ fn point_lamp_range_applies_the_smooth_window() {
         Vec3::new(1.2, 0.0, 0.0),
         Vec3::new(1.5, 0.0, 0.5),
     ] {
-        let d = (p - Integrator::offset(x, Vec3::Y)).length();
+        let d = (p - shading_point(&scene, x)).length();
         let window = (1.0 - (d / range).powi(4)).clamp(0.0, 1.0);
-        let expected = inverse_square(i, p, x, window) / f64::from(PI);
+        let expected = inverse_square(&scene, i, p, x, window) / f64::from(PI);
         let estimate = radiance(&scene, Strategy::Antishadow, x, 16);
         assert!(
             agrees(estimate, expected),
@@ -152,7 +160,7 @@ fn point_lamp_range_applies_the_smooth_window() {
         );
         assert!(!agrees(
             estimate,
-            inverse_square(i, p, x, 1.0) / f64::from(PI)
+            inverse_square(&scene, i, p, x, 1.0) / f64::from(PI)
         ));
     }
     // Beyond the range: nothing.
@@ -184,16 +192,18 @@ fn spot_lamp_irradiance_follows_the_extensions_falloff() {
     // Offsets r from the axis: angles 0, 0.24 (inside), 0.38, 0.46, 0.54 (falloff), 0.64 (out).
     for r in [0.0f32, 0.5, 0.8, 1.0, 1.2, 1.5] {
         let x = Vec3::new(r * 0.6, 0.0, r * 0.8);
-        let xs = Integrator::offset(x, Vec3::Y);
-        let theta = (r / (2.0 - xs.y)).atan();
-        let expected = inverse_square(i, p, x, falloff(theta)) / f64::from(PI);
+        let xs = shading_point(&scene, x);
+        // The angle off the lamp's axis (straight down) at the shading point itself.
+        let v = xs - p;
+        let theta = (-v.y / v.length()).clamp(-1.0, 1.0).acos();
+        let expected = inverse_square(&scene, i, p, x, falloff(theta)) / f64::from(PI);
         let estimate = radiance(&scene, Strategy::Antishadow, x, 16);
         assert!(
             agrees(estimate, expected),
             "r {r}: {estimate:?} vs {expected}"
         );
         // Negative case: without the falloff, points in the band disagree.
-        let hard = inverse_square(i, p, x, if theta < outer { 1.0 } else { 0.0 });
+        let hard = inverse_square(&scene, i, p, x, if theta < outer { 1.0 } else { 0.0 });
         if theta > inner && theta < outer {
             in_band += 1;
             assert!(!agrees(estimate, hard / f64::from(PI)), "r {r}");
@@ -279,7 +289,7 @@ fn point_lamp_inside_a_shade_lights_through_the_opening_only() {
         Vec3::new(0.2, 0.0, -0.1),
         Vec3::new(-0.3, 0.0, 0.2),
     ] {
-        let expected = inverse_square(5.0, p, x, 1.0) / f64::from(PI);
+        let expected = inverse_square(&scene, 5.0, p, x, 1.0) / f64::from(PI);
         let estimate = radiance(&scene, Strategy::Antishadow, x, 16);
         assert!(
             agrees(estimate, expected),

@@ -832,7 +832,7 @@ fn floor_points(scene: &Scene) -> Vec<(Vec<Region>, Vec3)> {
     for _ in 0..20_000 {
         let x = Vec3::new(6.0 * rng.uniform() - 3.0, 0.0, 6.0 * rng.uniform() - 3.0);
         // The integrator shades just above the surface.
-        let shading = Integrator::offset(x, Vec3::Y);
+        let shading = Integrator::offset(x, Vec3::Y, scene.geometry.scale());
         let regions: Vec<Region> = scene
             .portals
             .iter()
@@ -992,7 +992,7 @@ fn each_share_mixture_matches_lambert() {
         if !matches!(regions[0], Region::Antipenumbra | Region::Antiantumbra) {
             continue;
         }
-        let x = Integrator::offset(floor, Vec3::Y);
+        let x = Integrator::offset(floor, Vec3::Y, scene.geometry.scale());
         let expected =
             common::lambert_irradiance(x, Vec3::Y, l.polygon.as_ref().unwrap().vertices(), 10.0)
                 as f64;
@@ -1049,7 +1049,7 @@ fn each_share_mixture_lowers_the_error_in_fig8c() {
     let mut checked = 0;
     while checked < 3 {
         let floor = Vec3::new(3.0 * rng.uniform() - 1.5, 0.0, 3.0 * rng.uniform() - 1.5);
-        let shading = Integrator::offset(floor, Vec3::Y);
+        let shading = Integrator::offset(floor, Vec3::Y, scene.geometry.scale());
         // Away from the object (its shadow and the object itself are not the point here).
         if portal.planes.classify(shading) != Region::Antipenumbra || floor.length() < 1.0 {
             continue;
@@ -1099,7 +1099,7 @@ fn light_technique_alone_is_biased_only_without_alpha() {
         common::lambert_irradiance(x, Vec3::Y, l.polygon.as_ref().unwrap().vertices(), 10.0) as f64
     };
     let (scene, floor) = find("small portal", Region::Antipenumbra);
-    let x = Integrator::offset(floor, Vec3::Y);
+    let x = Integrator::offset(floor, Vec3::Y, scene.geometry.scale());
     let expected = irradiance(scene, x);
     for strategy in Strategy::ALL {
         let (mean, se) = light_technique_irradiance(scene, strategy, 0.1, x, 100_000);
@@ -1125,7 +1125,7 @@ fn light_technique_alone_is_biased_only_without_alpha() {
         );
     }
     let (scene, floor) = find("large portal", Region::Antiumbra);
-    let x = Integrator::offset(floor, Vec3::Y);
+    let x = Integrator::offset(floor, Vec3::Y, scene.geometry.scale());
     let expected = irradiance(scene, x);
     let (mean, se) = light_technique_irradiance(scene, Strategy::Portal, 0.0, x, 100_000);
     assert!(

@@ -345,8 +345,8 @@ fn constant_normal_map_tilts_shading_as_expected() {
             "{x}: mirrored tilt {other}"
         );
     }
-    // The tangent frame itself: MikkTSpace's bitangent follows increasing v (+z here), so a
-    // normal tilted towards +v tilts towards +z.
+    // The tangent frame itself: the bitangent points up the image (decreasing glTF v, -z
+    // here), as Blender's does, so a normal tilted towards the image's +Y tilts towards -z.
     let surface = scene.geometry.surfaces[0].as_ref().unwrap();
     let tri = scene
         .geometry
@@ -367,11 +367,65 @@ fn constant_normal_map_tilts_shading_as_expected() {
     );
     let mapped = surface.mapped_normal(&point, Vec3::Y).unwrap();
     assert!(
-        mapped.abs_diff_eq(Vec3::new(decoded.x, decoded.z, decoded.y), 1e-5),
+        mapped.abs_diff_eq(Vec3::new(decoded.x, decoded.z, -decoded.y), 1e-5),
         "{mapped}"
     );
     let b = Vec3::Y.cross(Vec3::X) * point.tangent.w;
-    assert!(b.abs_diff_eq(Vec3::Z, 1e-6), "bitangent {b}");
+    assert!(b.abs_diff_eq(Vec3::NEG_Z, 1e-6), "bitangent {b}");
+}
+
+/// A normal map tilted 30° toward the image's +Y (green up) under the floor's light: the
+/// shading normal tilts up the image, toward decreasing glTF `v` (−z on this floor), as in
+/// Blender, and the floor shades as Lambert about that normal (within 4 standard errors).
+/// The negative case: the same map with its green channel inverted (tilted toward +z, as a
+/// DirectX-style map or the earlier flipped bitangent would read it) is rejected.
+#[test]
+fn a_normal_map_tilted_up_the_image_tilts_as_in_blender() {
+    let (le, albedo) = (4.0f32, 0.8f32);
+    let encode = |v: f32| ((v + 1.0) * 0.5 * 255.0).round() as u8;
+    let map = |green: f32| {
+        let texel = [encode(0.0), encode(green), encode(0.866), 255];
+        (texel, image(2, 2, move |_, _| texel))
+    };
+    let render = |green: f32| {
+        let (texel, normal_map) = map(green);
+        let material = lambert(
+            albedo,
+            MaterialTextures {
+                normal: Some(NormalTexture {
+                    texture: texture(0),
+                    scale: 1.0,
+                }),
+                ..MaterialTextures::default()
+            },
+        );
+        let (desc, light) = textured_floor(material, vec![normal_map], le);
+        (texel, Scene::from_desc(desc, "tilted up").unwrap(), light)
+    };
+    let (texel, scene, light) = render(0.5);
+    let decoded = tangent_space_normal(Vec4::from_array(texel.map(|c| c as f32 / 255.0)), 1.0);
+    // Up the image is −z on this floor (v = (z + 2)/4 grows along +z).
+    let up = Vec3::new(decoded.x, decoded.z, -decoded.y).normalize();
+    let down = Vec3::new(decoded.x, decoded.z, decoded.y).normalize();
+    let lambert_about = |n: Vec3, x: Vec3| {
+        albedo as f64 / std::f64::consts::PI * lambert_irradiance(x, n, &light, le) as f64
+    };
+    for (k, x) in [Vec3::new(0.1, 0.0, 0.5), Vec3::new(-0.2, 0.0, 0.9)]
+        .into_iter()
+        .enumerate()
+    {
+        let (mean, se) = floor_radiance(&scene, (Strategy::Light, None), x, 20_000, 30 + k as u64);
+        let expected = lambert_about(up, x);
+        assert!(
+            (mean - expected).abs() <= 4.0 * se,
+            "{x}: {mean} ± {se} vs {expected}"
+        );
+        let inverted = lambert_about(down, x);
+        assert!(
+            (mean - inverted).abs() > 4.0 * se,
+            "{x}: green inverted ({inverted}) is not told apart"
+        );
+    }
 }
 
 #[test]

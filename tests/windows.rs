@@ -14,7 +14,7 @@ use common::assert_agrees;
 use glam::{Mat4, Vec2, Vec3};
 use portalview::asset::builtin;
 use portalview::asset::desc::PortalDesc;
-use portalview::asset::environment::{ENVIRONMENT_TARGET, EnvMap, EnvironmentDesc};
+use portalview::asset::environment::{ENVIRONMENT_TARGET, EnvMap, EnvironmentDesc, Interpolation};
 use portalview::light::environment::Environment;
 use portalview::light::sky::{SkySampler, SkyTechnique};
 use portalview::light::window::Window;
@@ -34,6 +34,7 @@ fn sky() -> Environment {
         },
         strength: 1.0,
         rotation_degrees: 0.0,
+        interpolation: Interpolation::Closest,
     };
     Environment::new(&desc, 3.0)
 }
@@ -604,11 +605,11 @@ fn sky_irradiance(
 #[test]
 fn light_technique_alone_is_biased_only_without_alpha() {
     let floor = Vec3::new(0.6, 0.0, -0.8);
-    let x = Integrator::offset(floor, Vec3::Y);
     for (covered, scene) in [
         (false, half_covered()),
         (true, Scene::open("window").unwrap()),
     ] {
+        let x = Integrator::offset(floor, Vec3::Y, scene.geometry.scale());
         let (expected, se_expected) = sky_irradiance(&scene, Strategy::Light, 0.1, x, 1_000_000, 1);
         for (k, strategy) in [Strategy::Portal, Strategy::Projection, Strategy::Antishadow]
             .into_iter()
