@@ -8,8 +8,8 @@ use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
 use libfuzzer_sys::fuzz_target;
-use portalview::scene::Scene;
 use portalview::asset::gltf::{GltfError, load_gltf};
+use portalview::scene::Scene;
 
 const LAMPSHADE: &[u8] = include_bytes!("../../assets/lampshade.glb");
 
@@ -43,13 +43,19 @@ fn check(path: &Path, data: &[u8]) {
         Ok(desc) => {
             if let Err(e) = Scene::from_desc(desc, &name) {
                 let message = e.to_string();
-                assert!(message.contains(&name), "scene error without the file: {message}");
+                assert!(
+                    message.contains(&name),
+                    "scene error without the file: {message}"
+                );
             }
         }
         Err(e @ GltfError::Internal { .. }) => panic!("the loader caught a panic: {e}"),
         Err(e) => {
             let message = e.to_string();
-            assert!(message.contains(&name), "loader error without the file: {message}");
+            assert!(
+                message.contains(&name),
+                "loader error without the file: {message}"
+            );
         }
     }
 }
