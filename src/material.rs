@@ -5,7 +5,8 @@
 //! `F0 = min(((ior − 1)/(ior + 1))² · specularColor, 1) · specularFactor` and
 //! `F90 = specularFactor`, evaluated at the microfacet (`wo·h`) as the glTF Sample Viewer does.
 //! One exception: a layer whose F0 is zero in every channel reflects nothing (F90 = 0), which
-//! is what Blender means by Principled *Specular* 0 (see `docs/method.md`).
+//! is what Blender means by Principled *Specular* 0 (see `docs/method.md`), and F90 fades
+//! to that continuously below F0 = 1e-3.
 //!
 //! Energy conservation by construction: the diffuse loses exactly the directional albedo
 //! `E(wo)` of the specular layer (its largest channel), looked up in a table of the GGX
@@ -19,6 +20,11 @@ use std::sync::OnceLock;
 
 use crate::asset::desc::MaterialDesc;
 use crate::sampling::{cosine_hemisphere_pdf, sample_cosine_hemisphere, sin_cos_turn};
+
+/// The F0 below which F90 fades to 0 in proportion (the specular layer's rim vanishes with
+/// its interface): a hundredth of glass's F0 of 0.04 at ior 1.5 (Blender's Specular 0.0125);
+/// every ordinary dielectric keeps F90 = specularFactor.
+const F90_FADE: f32 = 1e-3;
 
 /// Roughness is clamped so the GGX lobe stays a density (no delta lobes, so MIS always applies).
 const MIN_ALPHA: f32 = 1e-3;
@@ -110,7 +116,9 @@ impl Material {
             * weight;
         // Schlick's F90 = 1 describes an interface; F0 = 0 in every channel means there is
         // none (Blender's Specular 0, or ior = 1), so the layer is absent rather than a rim.
-        let f90 = if f0.max_element() > 0.0 { weight } else { 0.0 };
+        // Below F90_FADE, F90 fades with F0, so that a texel of F0 = 0 and one just above it
+        // (a specular-colour texel of 1/255) shade alike, with no seam between them.
+        let f90 = weight * (f0.max_element() / F90_FADE).clamp(0.0, 1.0);
         Material {
             base_color: p.base_color.clamp(Vec3::ZERO, Vec3::ONE),
             metallic: p.metallic.clamp(0.0, 1.0),
@@ -379,6 +387,30 @@ fn sample_ggx_vndf(wo: Vec3, alpha: f32, u: Vec2) -> Vec3 {
 mod tests {
     use super::*;
     use crate::sampling::Rng;
+
+    /// F90 is continuous as F0 goes to 0: a specular-colour texel of 1/255 (sRGB) shades as one
+    /// of 0 to within 2% of the layer's weight, and glass's F0 keeps F90 = specularFactor.
+    #[test]
+    fn f90_fades_continuously_with_f0() {
+        let params = |c: f32| MaterialParams {
+            specular_color: Vec3::splat(c),
+            specular_factor: 0.8,
+            ..MaterialParams::from_desc(&MaterialDesc::diffuse("t", Vec3::splat(0.5)))
+        };
+        let f90 = |c: f32| Material::without_lobes(&params(c)).f90;
+        let one_level = crate::asset::texture::srgb_to_linear(1.0 / 255.0);
+        assert_eq!(f90(0.0), 0.0);
+        assert!(f90(one_level) < 0.02 * 0.8, "{}", f90(one_level));
+        assert!((f90(1.0) - 0.8).abs() < 1e-7);
+        // Monotone and without jumps down to 0.
+        let mut last = f90(1.0);
+        for k in 1..500 {
+            let c = 0.98f32.powi(k);
+            let f = f90(c);
+            assert!(f <= last && last - f < 0.05 * 0.8, "{c}: {f} after {last}");
+            last = f;
+        }
+    }
 
     fn desc(metallic: f32, roughness: f32, base: Vec3) -> MaterialDesc {
         MaterialDesc {

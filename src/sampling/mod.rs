@@ -398,17 +398,52 @@ impl Distribution1D {
 
 /// The power heuristic (beta = 2) for two techniques with pdfs `pa` (the one used) and `pb`.
 pub fn power_heuristic(pa: f32, pb: f32) -> f32 {
-    let (a, b) = (pa * pa, pb * pb);
-    if a + b <= 0.0 || !(a + b).is_finite() {
-        if pa.is_infinite() { 1.0 } else { 0.0 }
+    // From the ratio of the smaller pdf to the larger, so that no square overflows (a pdf
+    // above 1.8e19, a near-delta lobe's, squared is infinite) or underflows to 0/0.
+    if pa.is_nan() || pa <= 0.0 {
+        return 0.0;
+    }
+    if pb.is_nan() || pb <= 0.0 {
+        return 1.0;
+    }
+    if pa.is_infinite() && pb.is_infinite() {
+        return 0.5;
+    }
+    if pa >= pb {
+        let r = pb / pa;
+        1.0 / (1.0 + r * r)
     } else {
-        a / (a + b)
+        let r2 = (pa / pb) * (pa / pb);
+        r2 / (1.0 + r2)
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn power_heuristic_has_no_overflow() {
+        // Weights of two techniques sum to 1, for ordinary pdfs and for ones whose squares
+        // overflow (a near-delta lobe) or underflow.
+        for (a, b) in [
+            (1.0, 3.0),
+            (1e20, 1.0),
+            (1e30, 1e29),
+            (1e-30, 1e-29),
+            (0.0, 2.0),
+            (f32::INFINITY, 1.0),
+            (f32::INFINITY, f32::INFINITY),
+        ] {
+            let sum = power_heuristic(a, b) + power_heuristic(b, a);
+            assert!((sum - 1.0).abs() < 1e-6, "({a}, {b}): {sum}");
+        }
+        // The earlier form returned 0 here (1e20² is infinite): the larger pdf takes it all.
+        assert_eq!(power_heuristic(1e20, 1.0), 1.0);
+        assert!((power_heuristic(1e30, 1e29) - 100.0 / 101.0).abs() < 1e-6);
+        assert!((power_heuristic(1.0, 3.0) - 0.1).abs() < 1e-7);
+        assert_eq!(power_heuristic(0.0, 0.0), 0.0);
+    }
 
     #[test]
     fn fast_sin_cos_match_libm() {

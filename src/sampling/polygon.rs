@@ -254,8 +254,11 @@ impl ConvexPolygon {
             .map(|h| origin + frame.t * h.x + frame.b * h.y)
             .collect();
         let polygon = ConvexPolygon::new(&hull_3d)?;
-        // Overlapping or flipped triangles, or a non-convex outline, change the area sum.
-        if (polygon.area - triangle_area).abs() > 1e-3 * polygon.area {
+        // Overlapping or flipped triangles, or a non-convex outline, change the area sum; its
+        // rounding is at most a few ulps per triangle, so anything beyond that is a notch the
+        // hull would wrongly sample (a light emitting where it has no surface).
+        let rounding = (8.0 * f32::EPSILON * triangles.len() as f32).max(1e-6);
+        if (polygon.area - triangle_area).abs() > rounding * polygon.area {
             return Err(PolygonError::NonConvex);
         }
         Ok(polygon)
@@ -825,6 +828,37 @@ mod tests {
             ConvexPolygon::from_triangles(&overlap),
             Err(PolygonError::NonConvex)
         );
+        // A unit square with a triangular notch of 0.025% of its area (its tip 0.0005 in from
+        // the right side): within the earlier 0.1% tolerance, but not within rounding, so the
+        // hull would emit where there is no light.
+        let e = 0.0005;
+        let notched = [
+            [Vec3::ZERO, Vec3::X, Vec3::new(1.0 - e, 0.5, 0.0)],
+            [
+                Vec3::ZERO,
+                Vec3::new(1.0 - e, 0.5, 0.0),
+                Vec3::new(1.0, 1.0, 0.0),
+            ],
+            [Vec3::ZERO, Vec3::new(1.0, 1.0, 0.0), Vec3::Y],
+        ];
+        assert_eq!(
+            ConvexPolygon::from_triangles(&notched),
+            Err(PolygonError::NonConvex)
+        );
+        // A fan of 12 triangles tiling a 12-gon (the most vertices a polygon light has) off
+        // the origin merges, its rounding allowed.
+        let ring: Vec<Vec3> = (0..12)
+            .map(|k| {
+                let a = std::f32::consts::TAU * k as f32 / 12.0;
+                Vec3::new(3.0 * a.cos(), 3.0 * a.sin(), 0.0) + Vec3::new(10.0, -7.0, 0.0)
+            })
+            .collect();
+        let centre = Vec3::new(10.0, -7.0, 0.0);
+        let fan: Vec<[Vec3; 3]> = (0..12)
+            .map(|k| [centre, ring[k], ring[(k + 1) % 12]])
+            .collect();
+        let merged = ConvexPolygon::from_triangles(&fan);
+        assert!(merged.is_ok(), "{merged:?}");
     }
 
     #[test]
