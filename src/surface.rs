@@ -202,6 +202,28 @@ pub fn ensure_valid_reflection(ng: Vec3, wo: Vec3, n: Vec3) -> Vec3 {
     (nx * x + nz * ng).normalize_or(ng)
 }
 
+/// Cycles' `bump_shadowing_term(N, n, wi)` (Blender 3.4; Chiang, Li and Burley 2019, "Taming
+/// the Shadow Terminator"), which Cycles multiplies into a diffuse closure's value (for light
+/// samples and BSDF samples alike, not into its pdf) wherever its normal `n` differs from the
+/// interpolated normal `ns`: light that the mapped normal faces but the smooth surface barely
+/// does is faded smoothly, as a bump's shadow would fade it.
+pub fn bump_shadowing_term(ns: Vec3, n: Vec3, wi: Vec3) -> f32 {
+    let denominator = n.dot(wi) * ns.dot(n);
+    let g = if denominator == 0.0 {
+        0.0
+    } else {
+        ns.dot(wi) / denominator
+    };
+    if g >= 1.0 {
+        1.0
+    } else if g < 0.0 || g.is_nan() {
+        0.0
+    } else {
+        let g2 = g * g;
+        -g2 * g + g2 + g
+    }
+}
+
 /// A normal texture's texel (linear RGB in [0, 1]) as a unit tangent-space normal, x and y
 /// scaled by `normalTexture.scale` as the glTF specification says.
 pub fn tangent_space_normal(texel: Vec4, scale: f32) -> Vec3 {

@@ -243,7 +243,7 @@ impl Environment {
     /// proportional to the environment within a window follows (with *Linear*, the largest
     /// weight the filter reads around `w`'s pixel, so that it bounds the filtered radiance).
     pub fn sampling_weight(&self, w: Vec3) -> f32 {
-        self.reached(w, |pixel| sampling_weight(pixel))
+        self.reached(w, sampling_weight)
     }
 
     /// The weight of the environment without its sun, `K` (`L` where the image has no hot spot),

@@ -54,6 +54,22 @@ struct Shading<'m> {
     frame: Frame,
     wo_local: Vec3,
     material: &'m Material,
+    /// Where the shading normal is not the interpolated one (a normal map, or a normal bent
+    /// toward the viewer), the interpolated normal and the shading normal: the BSDF's value
+    /// is faded by Cycles' bump shadowing term ([`Shading::bump_shadowing`]).
+    bump: Option<(Vec3, Vec3)>,
+}
+
+impl Shading<'_> {
+    /// The factor Cycles puts on the BSDF's value for the world direction `wi`
+    /// (`surface::bump_shadowing_term`), 1 where the shading normal is the interpolated one.
+    #[inline(always)]
+    fn bump_shadowing(&self, wi: Vec3) -> f32 {
+        match self.bump {
+            Some((ns, n)) => crate::surface::bump_shadowing_term(ns, n, wi),
+            None => 1.0,
+        }
+    }
 }
 
 /// The two light contexts that a path's consecutive shading points fill in turn (the
@@ -349,7 +365,7 @@ impl<'a> Integrator<'a> {
             let Some(bs) = material.sampled(shading.wo_local, wi_local) else {
                 break;
             };
-            beta *= bs.f * bs.wi.z / bs.pdf;
+            beta *= bs.f * shading.bump_shadowing(wi) * bs.wi.z / bs.pdf;
             if !beta.is_finite() {
                 break;
             }
@@ -464,10 +480,13 @@ impl<'a> Integrator<'a> {
     }
 
     /// The shading frame on the side the ray came from, or `None` where the shading normal
-    /// makes the outgoing direction go below the surface. `mapped` is the normal map's normal
-    /// (for the front side), bent as Cycles bends it where it would mirror `wo` below the
-    /// surface ([`crate::surface::ensure_valid_reflection`]). Light from below the geometric
-    /// surface is refused separately (`wi · ng > 0`), so a tilted normal never leaks light.
+    /// makes the outgoing direction go below the surface. The shading normal, the normal
+    /// map's (`mapped`, for the front side) or else the interpolated one, is bent as Cycles
+    /// bends every closure's normal where it would mirror `wo` below the surface
+    /// ([`crate::surface::ensure_valid_reflection`]); where it then differs from the
+    /// interpolated normal, the BSDF's value is faded as Cycles fades it
+    /// ([`crate::surface::bump_shadowing_term`]). Light from below the geometric surface is
+    /// refused separately (`wi · ng > 0`), so a tilted normal never leaks light.
     #[inline(always)]
     fn shading<'m>(
         p: Vec3,
@@ -482,11 +501,13 @@ impl<'a> Integrator<'a> {
         let ng = if back { -ng } else { ng };
         let ns = if ns == Vec3::ZERO { ng } else { ns };
         let ns = if ns.dot(ng) < 0.0 { -ns } else { ns };
-        // A mapped normal is bent as Cycles bends it (`surface::ensure_valid_reflection`).
-        let ns = match mapped.map(|n| if back { -n } else { n }) {
-            Some(n) => crate::surface::ensure_valid_reflection(ng, wo, n),
-            None => ns,
-        };
+        // As Cycles' closures: the normal (mapped or interpolated) bent so that it mirrors
+        // `wo` above the surface, and where it is no longer the interpolated normal, the
+        // BSDF's value faded by the bump shadowing term.
+        let n = mapped.map_or(ns, |n| if back { -n } else { n });
+        let n = crate::surface::ensure_valid_reflection(ng, wo, n);
+        let bump = (n != ns).then_some((ns, n));
+        let ns = n;
         let frame = Frame::from_normal(ns);
         let wo_local = frame.to_local(wo);
         (wo_local.z > 0.0).then(|| Shading {
@@ -495,6 +516,7 @@ impl<'a> Integrator<'a> {
             frame,
             wo_local,
             material,
+            bump,
         })
     }
 
@@ -633,7 +655,7 @@ impl<'a> Integrator<'a> {
             return Vec3::ZERO;
         }
         let wi_local = s.frame.to_local(sample.wi);
-        let f = s.material.eval_pdf(s.wo_local, wi_local).0;
+        let f = s.material.eval_pdf(s.wo_local, wi_local).0 * s.bump_shadowing(sample.wi);
         if f == Vec3::ZERO || wi_local.z <= 0.0 {
             return Vec3::ZERO;
         }
@@ -754,6 +776,7 @@ impl<'a> Integrator<'a> {
         }
         let wi_local = s.frame.to_local(wi);
         let (f, bsdf_pdf) = s.material.eval_pdf(s.wo_local, wi_local);
+        let f = f * s.bump_shadowing(wi);
         if f == Vec3::ZERO {
             return Vec3::ZERO;
         }
