@@ -91,7 +91,10 @@ impl PortalViewApp {
             .add(
                 egui::TextEdit::singleline(&mut self.path_input)
                     .hint_text("path to .gltf/.glb, Enter")
-                    .desired_width(240.0),
+                    .desired_width(240.0)
+                    // As tall as the bar's buttons, its text centred: on the label's line.
+                    .min_size(egui::vec2(0.0, ui.spacing().interact_size.y))
+                    .vertical_align(egui::Align::Center),
             )
             .labelled_by(label.id);
         let entered = field.lost_focus() && ui.input(|i| i.key_pressed(egui::Key::Enter));
@@ -121,7 +124,12 @@ impl PortalViewApp {
         let file_name = (purpose == Purpose::SaveGlb)
             .then(|| self.scene().map(|s| format!("{}.glb", s.name)))
             .flatten();
-        self.picker = Some(FilePicker::new(purpose, folder.as_deref(), file_name));
+        self.picker = Some(FilePicker::new(
+            purpose,
+            folder.as_deref(),
+            file_name,
+            &self.ctx,
+        ));
     }
 
     /// Draws the open file dialog; a chosen file becomes a command.

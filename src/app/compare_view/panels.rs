@@ -149,6 +149,7 @@ impl CompareView {
                     Purpose::ReferenceExr,
                     folder.as_deref(),
                     None,
+                    ui.ctx(),
                 ));
             }
             if self.reference_file.is_some() && ui.button("Render reference").clicked() {
@@ -177,7 +178,19 @@ impl CompareView {
 
     pub(super) fn numbers(&mut self, ui: &mut Ui) {
         let Some(frame) = self.frame.as_ref().filter(|f| !f.runs.is_empty()) else {
-            ui.label("no numbers yet");
+            // The table's headers and an empty row from the start: the panel takes the table's
+            // width now, so that the numbers arriving do not widen it and shift the images.
+            egui::Grid::new("compare numbers")
+                .num_columns(6)
+                .striped(true)
+                .show(ui, |ui| {
+                    header_row(ui, "MSE", "relMSE");
+                    ui.label("no numbers yet");
+                    for _ in 0..5 {
+                        ui.label("–");
+                    }
+                    ui.end_row();
+                });
             return;
         };
         let floor = match &frame.reference {
@@ -203,10 +216,7 @@ impl CompareView {
                     Some(_) => ("MSE − floor", "relMSE − floor"),
                     None => ("MSE", "relMSE"),
                 };
-                for h in ["strategy", "spp", "seconds", mse, relmse, "eff. vs light"] {
-                    ui.label(RichText::new(h).strong());
-                }
-                ui.end_row();
+                header_row(ui, mse, relmse);
                 let shown = |e: Option<f64>| e.map_or("≤ floor".to_owned(), sci);
                 for run in &frame.runs {
                     let (mse, relmse) = errors(run);
@@ -282,4 +292,12 @@ pub(super) fn reference_progress(bar: &indicatif::ProgressBar) -> (f32, String) 
         )
     };
     (done, text)
+}
+
+/// The numbers table's header row, with the error columns named `mse` and `relmse`.
+fn header_row(ui: &mut Ui, mse: &str, relmse: &str) {
+    for h in ["strategy", "spp", "seconds", mse, relmse, "eff. vs light"] {
+        ui.label(RichText::new(h).strong());
+    }
+    ui.end_row();
 }
