@@ -3,7 +3,8 @@
 Run with Blender 3.4 from the repository root (outputs go to --out, not the repository):
 
     blender -b --factory-startup -t 1 -P bench/blender/normalmap.py -- \
-        --out /work/refs/normalmap [--portalview target/release/portalview]
+        --out /work/refs/normalmap [--portalview target/release/portalview] \
+        [--mitsuba-python /work/mitsuba-venv/bin/python]
 
 The scene (Blender Z up): a wall at y = 0 facing the camera (-Y), four 1 x 0.75 m panels, each UV
 mapped 0..1 (u to the right, v up) with a Principled BSDF (Specular 0, Roughness 1: Lambertian in
@@ -33,6 +34,23 @@ Cycles' bump_shadowing_term; and for every panel under the point lamp a numerica
 the mapped normal), `model shadowing` (times bump_shadowing_term(sd->N, N, L), closure/bsdf.h)
 and `model cycles` (the normal also passed through ensure_valid_reflection(Ng, I, N),
 closure/bsdf_util.h, as svm_node_closure_bsdf does). `model cycles` matches Cycles to 0.04% RMS.
+
+With --mitsuba-python (a Python with Mitsuba 3.9, `pip install 'mitsuba==3.9.*'`), the scene is
+also rendered with Mitsuba 3 (bench/blender/mitsuba_normalmap.py: each panel a world-space PLY
+with Blender's uvs, a `twosided` `normalmap` BSDF around `diffuse`, the same PNG raw and bilinear;
+the point lamp as a `point` emitter of P/(4 pi) W/sr, the emissive square as a one-sided `area`
+emitter; the camera as in run.py; box filter; `direct`), once with normalmap's 3.9 defaults
+(`Mitsuba default`: flip_invalid_normals and use_shadowing_function, Conty Estevez et al. 2019) and once
+with both off (`Mitsuba plain`), two seeds each, and compared with Cycles per panel as portalview
+is. Under the point lamp both are also compared with `model plain` and with `model mitsuba`
+(normalmap.cpp's rule: a mapped normal facing away from the viewer mirrored about the geometric
+normal, times Estevez's 2 / (1 + sqrt(1 + min(tan^2(theta_n) / 8, 1) tan^2(theta_l))), both
+angles from the geometric normal); `mi noise` is the RMS standard error of Mitsuba's two-seed
+mean per pixel. (Plain Mitsuba also zeroes where the mapped normal faces away from the viewer,
+diffuse's cos_theta_i > 0; no pixel here has such a normal, so `model plain` is its rule.)
+Mitsuba plain matches `model plain`, and Mitsuba default `model mitsuba`, to within its noise:
+Mitsuba shades by the plain rule (or Estevez's term), not by Cycles' ensure_valid_reflection
+and Chiang's bump_shadowing_term, hence its difference from Cycles on the steep bumps.
 """
 
 import argparse
@@ -83,6 +101,12 @@ def args():
     p.add_argument("--threads", type=int, default=1, help="Cycles threads")
     p.add_argument("--lights", default="point,area")
     p.add_argument("--force", action="store_true", help="render Cycles again")
+    p.add_argument(
+        "--mitsuba-python",
+        help="a Python with Mitsuba 3.9 (e.g. /work/mitsuba-venv/bin/python): also render with it",
+    )
+    p.add_argument("--mi-spp", type=int, default=256, help="Mitsuba samples per pixel")
+    p.add_argument("--mi-threads", type=int, default=1, help="Mitsuba's worker threads")
     p.add_argument(
         "--probe-diffuse-export",
         action="store_true",
@@ -434,11 +458,32 @@ def ensure_valid_reflection(ng, i, n):
     return np.where(keep[..., None], n, out)
 
 
+def mitsuba_flip(ng, i, n):
+    """Mitsuba 3.9's normalmap.cpp with flip_invalid_normals: where cos_theta(wi) * dot(wi, n) <= 0
+    (n the mapped normal in the shading frame), n = (-n.x, -n.y, n.z), the mirror image of n about
+    the shading normal (here ng). i: (..., 3) unit directions to the viewer."""
+    flip = ((i @ ng) * np.sum(i * n, -1)) <= 0.0
+    mirrored = 2.0 * (n @ ng)[..., None] * ng - n
+    return np.where(flip[..., None], mirrored, n)
+
+
+def estevez_shadowing(ng, n, l):
+    """Mitsuba 3.9's eval_shadow_terminator (bsdfs/normalmap_helpers.h; Conty Estevez, Lecocq
+    and Stein, Ray Tracing Gems 2019): 2 / (1 + sqrt(1 + alpha2 tan^2(theta_l))), alpha2 =
+    min(tan^2(theta_n) / 8, 1), both angles from the unperturbed shading normal ng."""
+    cn2 = np.minimum((n @ ng) ** 2, 1.0)
+    cl2 = np.minimum((l @ ng) ** 2, 1.0)
+    alpha2 = np.minimum(0.125 * (1.0 - cn2) / cn2, 1.0)
+    return 2.0 / (1.0 + np.sqrt(1.0 + alpha2 * (1.0 - cl2) / cl2))
+
+
 def cycles_model(width, height, light_at, ss=6):
     """Per panel, a numerical model of Cycles 3.4 shading the panels under the point lamp, at
     three levels: plain Lambert with the mapped normal; with bump_shadowing_term; and with
-    ensure_valid_reflection too (Cycles). ss x ss samples per pixel (box filter), the 8-bit map
-    read bilinearly with wrapping as Cycles' Linear image texture does."""
+    ensure_valid_reflection too (Cycles); and, for Mitsuba 3.9's normalmap, the plain level with
+    mitsuba_flip and estevez_shadowing instead. ss x ss samples per pixel (box filter), the 8-bit
+    map read bilinearly with wrapping as Cycles' Linear image texture (and Mitsuba's bilinear
+    bitmap: texel centres at (i + 0.5) / size) does."""
     cam = bpy.context.scene.camera
     o = np.array(cam.matrix_world)[:3, 3]
     frame = [np.array(v) for v in cam.data.view_frame(scene=bpy.context.scene)]
@@ -461,7 +506,10 @@ def cycles_model(width, height, light_at, ss=6):
     r2 = np.sum(l * l, -1)
     l /= np.sqrt(r2)[..., None]
     scale = ALBEDO / math.pi * POINT_POWER / (4 * math.pi) / r2
-    levels = {k: np.zeros((height, width)) for k in ("plain", "shadowing", "cycles")}
+    levels = {
+        k: np.zeros((height, width))
+        for k in ("plain", "shadowing", "cycles", "mitsuba")
+    }
     for name, (cx, cz, kind, param) in PANELS.items():
         u = (p[..., 0] - (cx - PANEL_W / 2)) / PANEL_W
         v = (p[..., 2] - (cz - PANEL_H / 2)) / PANEL_H
@@ -479,16 +527,124 @@ def cycles_model(width, height, light_at, ss=6):
         n = c[..., :1] * T + c[..., 1:2] * B + c[..., 2:3] * ng
         n /= np.linalg.norm(n, axis=-1, keepdims=True)
         for level in levels:
-            nn = ensure_valid_reflection(ng, i, n) if level == "cycles" else n
+            nn = n
+            if level == "cycles":
+                nn = ensure_valid_reflection(ng, i, n)
+            elif level == "mitsuba":
+                nn = mitsuba_flip(ng, i, n)
             val = np.maximum(np.sum(nn * l, -1), 0.0)
-            if level != "plain":
+            if level in ("shadowing", "cycles"):
                 val = val * bump_shadowing(ng, nn, l)
+            if level == "mitsuba":
+                # diffuse.cpp: zero unless cos_theta_i > 0 in the perturbed frame (after the
+                # flip always so); normalmap.cpp: Estevez's term
+                val = np.where(np.sum(nn * i, -1) > 0.0, val, 0.0)
+                val = val * estevez_shadowing(ng, nn, l)
             val = np.where(inside, scale * val, 0.0)
             levels[level] += val.reshape(height, ss, width, ss).mean(axis=(1, 3))
     return levels
 
 
 # --- main -------------------------------------------------------------------------------------
+
+
+# --- Mitsuba 3 -------------------------------------------------------------------------------
+
+
+def write_ply(path, tris, uvs):
+    """Triangles (n, 3, 3) with per-corner uvs (n, 3, 2) as a binary PLY, vertices unshared
+    (as run.py writes them)."""
+    n = len(tris)
+    verts = np.concatenate([np.reshape(tris, (-1, 3)), np.reshape(uvs, (-1, 2))], axis=1)
+    faces = np.zeros(n, dtype=[("k", "u1"), ("i", "<i4", 3)])
+    faces["k"] = 3
+    faces["i"] = np.arange(3 * n).reshape(n, 3)
+    header = (
+        "ply\nformat binary_little_endian 1.0\n"
+        f"element vertex {3 * n}\nproperty float x\nproperty float y\nproperty float z\n"
+        "property float u\nproperty float v\n"
+        f"element face {n}\nproperty list uchar int vertex_indices\nend_header\n"
+    )
+    with open(path, "wb") as f:
+        f.write(header.encode())
+        f.write(verts.astype("<f4").tobytes())
+        f.write(faces.tobytes())
+
+
+def mesh_triangles(obj):
+    """World-space triangles of obj's evaluated mesh (Blender's winding) and their corners' uvs
+    as Blender has them (v up the image)."""
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    ev = obj.evaluated_get(depsgraph)
+    mesh = ev.to_mesh()
+    mesh.calc_loop_triangles()
+    m = np.array(obj.matrix_world)
+    uv_layer = mesh.uv_layers.active.data if mesh.uv_layers.active else None
+    tris, uvs = [], []
+    for t in mesh.loop_triangles:
+        tris.append([(m @ np.array([*mesh.vertices[v].co, 1.0]))[:3] for v in t.vertices])
+        uvs.append([tuple(uv_layer[l].uv) if uv_layer else (0.0, 0.0) for l in t.loops])
+    ev.to_mesh_clear()
+    return np.array(tris), np.array(uvs)
+
+
+def mitsuba_scene(out, maps, light, width, height):
+    """The Blender scene as mitsuba_normalmap.py reads it: a PLY per panel with its normal map's
+    PNG, the point lamp (P/(4 pi) W/sr) or the emissive square (radiance = Strength x Color, one
+    side), and the camera (Mitsuba looks down +Z with +X to the left: to_world = camera matrix
+    x diag(-1, 1, -1, 1)), as run.py's mitsuba_scene does."""
+    d = os.path.join(out, "mitsuba")
+    os.makedirs(d, exist_ok=True)
+    desc = {"panels": [], "areas": [], "points": []}
+    for obj in bpy.context.scene.objects:
+        if obj.type == "LIGHT":
+            p = obj.data.energy / (4 * math.pi)
+            desc["points"].append({"position": list(obj.matrix_world.translation),
+                                   "intensity": [p * c for c in obj.data.color]})
+        if obj.type != "MESH":
+            continue
+        tris, uvs = mesh_triangles(obj)
+        ply = os.path.join(d, f"{light}-{obj.name}.ply")
+        write_ply(ply, tris, uvs)
+        if obj.name in PANELS:
+            desc["panels"].append({"name": obj.name, "ply": ply, "normalmap": maps[obj.name],
+                                   "color": [ALBEDO] * 3})
+        else:
+            e = obj.active_material.node_tree.nodes["Emission"].inputs
+            desc["areas"].append({
+                "ply": ply,
+                "radiance": [e["Strength"].default_value * c for c in e["Color"].default_value[:3]],
+            })
+    cam = bpy.context.scene.camera
+    to_world = np.array(cam.matrix_world) @ np.diag([-1.0, 1.0, -1.0, 1.0])
+    desc["camera"] = {"to_world": to_world.tolist(), "fov_x_degrees": math.degrees(cam.data.angle_x),
+                      "width": width, "height": height}
+    path = os.path.join(d, f"{light}.json")
+    with open(path, "w") as f:
+        json.dump(desc, f, indent=1)
+    return path
+
+
+def run_mitsuba(python, scene_json, a):
+    """Mitsuba's renders (normalmap's defaults, and plain), seeds 1 and 2, as luminance images:
+    {config: (seed 1, seed 2)}."""
+    here = os.path.dirname(os.path.abspath(__file__))
+    images = {"default": [], "plain": []}
+    for seed in (1, 2):
+        prefix = f"{os.path.splitext(scene_json)[0]}-{seed}"
+        t0 = time.time()
+        r = subprocess.run(
+            [python, os.path.join(here, "mitsuba_normalmap.py"), scene_json, prefix,
+             str(a.mi_spp), str(seed), str(a.mi_threads)],
+            capture_output=True, text=True,
+        )
+        if r.returncode != 0:
+            print(f"Mitsuba failed on {scene_json}:\n{r.stderr.strip()}")
+            return {}
+        print(f"  Mitsuba {prefix}-*.npy: {time.time() - t0:.0f} s")
+        for c in images:
+            images[c].append(luminance(np.load(f"{prefix}-{c}.npy")))
+    return images
 
 
 def run_portalview(exe, gltf, path, a, seed=1):
@@ -531,6 +687,9 @@ def main():
         if a.probe_diffuse_export and light == lights[0]:
             probe_diffuse_export(out)
             build_scene(maps, light, a.width, a.height)
+        mitsuba_json = (
+            mitsuba_scene(out, maps, light, a.width, a.height) if a.mitsuba_python else None
+        )
         swap_to_diffuse()
         masks, _ = panel_masks(a.width, a.height)
         cycles = []
@@ -541,10 +700,10 @@ def main():
                 render_cycles(path, a.spp, seed, a.threads)
                 print(f"  Cycles {path}: {time.time() - t0:.0f} s")
             cycles.append(luminance(load_exr(path)))
-        report[light] = (variants, masks, cycles)
+        report[light] = (variants, masks, cycles, mitsuba_json)
 
-    rows = []
-    for light, (variants, masks, cycles) in report.items():
+    rows, mi_rows = [], []
+    for light, (variants, masks, cycles, mitsuba_json) in report.items():
         cy = (cycles[0] + cycles[1]) / 2
         noise = np.abs(cycles[0] - cycles[1]) / 2  # per-pixel standard error of the mean, roughly
         if light == "point":
@@ -562,6 +721,24 @@ def main():
                                  img[m].mean() / cy[m].mean(),
                                  math.sqrt(np.mean((img[m] - cy[m]) ** 2)) / cy[m].mean(),
                                  math.sqrt(np.mean(noise[m] ** 2)) / cy[m].mean()))
+        if mitsuba_json:
+            for config, (mi1, mi2) in run_mitsuba(a.mitsuba_python, mitsuba_json, a).items():
+                img = (mi1 + mi2) / 2
+                mi_noise = np.abs(mi1 - mi2) / 2
+                for name, m in masks.items():
+                    c = cy[m].mean()
+                    rows.append((light, f"Mitsuba {config}", name, c, img[m].mean() / c,
+                                 math.sqrt(np.mean((img[m] - cy[m]) ** 2)) / c,
+                                 math.sqrt(np.mean(noise[m] ** 2)) / c))
+                    if light != "point":
+                        continue
+                    for level in ("plain", "mitsuba"):
+                        ref = model[level][m]
+                        r = ref.mean()
+                        mi_rows.append((light, f"Mitsuba {config}", f"model {level}", name, r,
+                                        img[m].mean() / r,
+                                        math.sqrt(np.mean((img[m] - ref) ** 2)) / r,
+                                        math.sqrt(np.mean(mi_noise[m] ** 2)) / r))
         if not a.portalview:
             for name, m in masks.items():
                 rows.append((light, "Cycles only", name, cy[m].mean(), float("nan"), float("nan"),
@@ -580,13 +757,21 @@ def main():
                 rows.append((light, variant, name, c, pv[m].mean() / c,
                              math.sqrt(np.mean((pv[m] - cy[m]) ** 2)) / c,
                              math.sqrt(np.mean(noise[m] ** 2)) / c))
-    print(f"\n{'light':<6} {'variant':<18} {'panel':<6} {'Cycles mean':>11} {'ratio':>7} "
+    print(f"\n{'light':<6} {'variant':<20} {'panel':<6} {'Cycles mean':>11} {'ratio':>7} "
           f"{'RMS diff':>9} {'cy noise':>9}")
     for light, variant, name, c, ratio, rms, nz in rows:
-        print(f"{light:<6} {variant:<18} {name:<6} {c:11.5f} {ratio:7.3f} {100 * rms:8.2f}% "
+        print(f"{light:<6} {variant:<20} {name:<6} {c:11.5f} {ratio:7.3f} {100 * rms:8.2f}% "
               f"{100 * nz:8.2f}%")
-    with open(os.path.join(out, "table.json" if a.portalview else "cycles-table.json"), "w") as f:
-        json.dump(rows, f, indent=1)
+    if mi_rows:
+        print(f"\n{'light':<6} {'renderer':<16} {'against':<14} {'panel':<6} {'model mean':>11} "
+              f"{'ratio':>7} {'RMS diff':>9} {'mi noise':>9}")
+        for light, renderer, against, name, r, ratio, rms, nz in mi_rows:
+            print(f"{light:<6} {renderer:<16} {against:<14} {name:<6} {r:11.5f} {ratio:7.3f} "
+                  f"{100 * rms:8.2f}% {100 * nz:8.2f}%")
+    table = "table.json" if a.portalview else "mitsuba-table.json" if a.mitsuba_python else (
+        "cycles-table.json")
+    with open(os.path.join(out, table), "w") as f:
+        json.dump(rows + mi_rows, f, indent=1)
 
 
 def probe_diffuse_export(out):
