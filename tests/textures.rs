@@ -294,14 +294,11 @@ fn checkerboard_floor_matches_per_texel_lambert_irradiance() {
     assert_eq!(tested, 6);
 }
 
-#[test]
-fn constant_normal_map_tilts_shading_as_expected() {
-    let (le, albedo) = (4.0f32, 0.8f32);
-    // A constant tangent-space normal tilted 30° towards +u (the tangent), quantised to 8 bits.
-    let tilt = Vec3::new(0.5, 0.0, 0.866);
+/// [`textured_floor`] whose Lambertian floor (albedo `albedo`) has a constant normal map: the
+/// tangent-space normal `tilt` quantised to 8 bits. Returns the texel, the scene and the light.
+fn normal_mapped_floor(tilt: Vec3, albedo: f32, le: f32) -> ([u8; 4], Scene, Vec<Vec3>) {
     let encode = |v: f32| ((v + 1.0) * 0.5 * 255.0).round() as u8;
     let texel = [encode(tilt.x), encode(tilt.y), encode(tilt.z), 255];
-    let normal_map = image(2, 2, |_, _| texel);
     let material = lambert(
         albedo,
         MaterialTextures {
@@ -312,8 +309,15 @@ fn constant_normal_map_tilts_shading_as_expected() {
             ..MaterialTextures::default()
         },
     );
-    let (desc, light) = textured_floor(material, vec![normal_map], le);
-    let scene = Scene::from_desc(desc, "normal").unwrap();
+    let (desc, light) = textured_floor(material, vec![image(2, 2, |_, _| texel)], le);
+    (texel, Scene::from_desc(desc, "normal").unwrap(), light)
+}
+
+#[test]
+fn constant_normal_map_tilts_shading_as_expected() {
+    let (le, albedo) = (4.0f32, 0.8f32);
+    // A constant tangent-space normal tilted 30° towards +u (the tangent), quantised to 8 bits.
+    let (texel, scene, light) = normal_mapped_floor(Vec3::new(0.5, 0.0, 0.866), albedo, le);
     // The decoded tangent-space normal; u grows along +x on this floor (MikkTSpace's tangent),
     // so the shading normal tilts towards +x.
     let decoded = tangent_space_normal(Vec4::from_array(texel.map(|c| c as f32 / 255.0)), 1.0);
@@ -384,20 +388,7 @@ fn constant_normal_map_tilts_shading_as_expected() {
 #[test]
 fn a_normal_map_tilted_up_the_image_tilts_as_in_blender() {
     let (le, albedo) = (4.0f32, 0.8f32);
-    let encode = |v: f32| ((v + 1.0) * 0.5 * 255.0).round() as u8;
-    let texel = [encode(0.0), encode(0.5), encode(0.866), 255];
-    let material = lambert(
-        albedo,
-        MaterialTextures {
-            normal: Some(NormalTexture {
-                texture: texture(0),
-                scale: 1.0,
-            }),
-            ..MaterialTextures::default()
-        },
-    );
-    let (desc, light) = textured_floor(material, vec![image(2, 2, |_, _| texel)], le);
-    let scene = Scene::from_desc(desc, "tilted up").unwrap();
+    let (texel, scene, light) = normal_mapped_floor(Vec3::new(0.0, 0.5, 0.866), albedo, le);
     let decoded = tangent_space_normal(Vec4::from_array(texel.map(|c| c as f32 / 255.0)), 1.0);
     // Up the image is −z on this floor (v = (z + 2)/4 grows along +z).
     let up = Vec3::new(decoded.x, decoded.z, -decoded.y).normalize();

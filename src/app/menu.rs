@@ -94,7 +94,7 @@ impl PortalViewApp {
                     .desired_width(240.0)
                     // As tall as the bar's buttons, its text centred: on the label's line.
                     .min_size(egui::vec2(0.0, ui.spacing().interact_size.y))
-                    .vertical_align(egui::Align::Center),
+                    .align(egui::Align2::LEFT_CENTER),
             )
             .labelled_by(label.id);
         let entered = field.lost_focus() && ui.input(|i| i.key_pressed(egui::Key::Enter));

@@ -203,15 +203,16 @@ impl Environment {
     /// [`Self::radiance`] and [`Self::pdf`] at once, from one pixel lookup.
     #[inline(always)]
     pub fn radiance_pdf(&self, w: Vec3) -> (Vec3, f32) {
-        let (pixel, pdf) = self.pixel_pdf(w);
+        let (pixel, pdf, _) = self.pixel_pdf(w);
         (pixel * self.strength, pdf)
     }
 
-    /// The map's value along `w` before the strength, and [`Self::pdf`].
+    /// The map's value along `w` before the strength, [`Self::pdf`], and the pixel's index
+    /// `j · width + i` (`None` for a constant), for the sun's pdf.
     #[inline(always)]
-    fn pixel_pdf(&self, w: Vec3) -> (Vec3, f32) {
+    fn pixel_pdf(&self, w: Vec3) -> (Vec3, f32, Option<u32>) {
         match &self.map {
-            Map::Constant(c) => (*c, 1.0 / (4.0 * PI)),
+            Map::Constant(c) => (*c, 1.0 / (4.0 * PI), None),
             Map::Image {
                 width,
                 height,
@@ -222,19 +223,21 @@ impl Environment {
                 ..
             } => {
                 let m = self.to_map(w);
-                let (i, j) = pixel_of(m, *width, *height);
+                let uv = map_uv(m);
+                let (i, j) = pixel_at(uv, *width, *height);
+                let index = j * width + i;
                 let le = match interpolation {
-                    Interpolation::Closest => pixels[(j * width + i) as usize],
-                    Interpolation::Linear => bilinear(pixels, *width, *height, m),
+                    Interpolation::Closest => pixels[index as usize],
+                    Interpolation::Linear => bilinear(pixels, *width, *height, uv),
                 };
                 let sin_theta = (m.x * m.x + m.z * m.z).sqrt();
                 if sin_theta <= 0.0 {
-                    return (le, 0.0);
+                    return (le, 0.0, Some(index));
                 }
                 let pdf_uv = rows.pmf(j as usize)
                     * columns[j as usize].pmf(i as usize)
                     * (*width * *height) as f32;
-                (le, pdf_uv / (2.0 * PI * PI * sin_theta))
+                (le, pdf_uv / (2.0 * PI * PI * sin_theta), Some(index))
             }
         }
     }
@@ -276,11 +279,21 @@ impl Environment {
         }
     }
 
-    fn hot(&self) -> Option<&HotSpot> {
+    /// The sun and the image's width and height, if the map is an image with a sun.
+    fn hot_image(&self) -> Option<(&HotSpot, u32, u32)> {
         match &self.map {
-            Map::Image { hot, .. } => hot.as_ref(),
-            Map::Constant(_) => None,
+            Map::Image {
+                width,
+                height,
+                hot: Some(hot),
+                ..
+            } => Some((hot, *width, *height)),
+            _ => None,
         }
+    }
+
+    fn hot(&self) -> Option<&HotSpot> {
+        self.hot_image().map(|(hot, _, _)| hot)
     }
 
     /// The sun's power `∫ weight(S) dω` in the units of [`Self::sky_weight`]'s integrals, and
@@ -299,20 +312,12 @@ impl Environment {
     /// uniform in its solid angle); its density is [`Self::hot_pdf`].
     #[inline(always)]
     pub fn sample_hot(&self, u: Vec2) -> Option<Vec3> {
-        let Map::Image {
-            width,
-            height,
-            hot: Some(hot),
-            ..
-        } = &self.map
-        else {
-            return None;
-        };
+        let (hot, width, height) = self.hot_image()?;
         let (k, _, u_in) = hot.pick.sample(u.x)?;
         let index = *hot.pixels.get(k)?;
         let (i, j) = (index % width, index / width);
-        let phi = TAU * ((i as f32 + u_in) / *width as f32 - 0.5);
-        let (z0, z1) = row_cosines(j, *height);
+        let phi = TAU * ((i as f32 + u_in) / width as f32 - 0.5);
+        let (z0, z1) = row_cosines(j, height);
         let z = z0 + u.y * (z1 - z0);
         let r = (1.0 - z * z).max(0.0).sqrt();
         let (sin_phi, cos_phi) = phi.sin_cos();
@@ -323,27 +328,20 @@ impl Environment {
     /// pixel `w` falls in over that pixel's solid angle, 0 on a pixel it never picks (and
     /// without a hot spot).
     pub fn hot_pdf(&self, w: Vec3) -> f32 {
-        let Map::Image {
-            width,
-            height,
-            hot: Some(hot),
-            ..
-        } = &self.map
-        else {
+        let Some((hot, width, height)) = self.hot_image() else {
             return 0.0;
         };
-        let (i, j) = pixel_of(self.to_map(w), *width, *height);
-        hot.pdf(j * width + i, *width, *height)
+        let (i, j) = pixel_of(self.to_map(w), width, height);
+        hot.pdf(j * width + i, width, height)
     }
 
-    /// [`Self::radiance_pdf`] and [`Self::hot_pdf`] at once.
+    /// [`Self::radiance_pdf`] and [`Self::hot_pdf`] from one pixel lookup.
     #[inline(always)]
     pub fn radiance_pdfs(&self, w: Vec3) -> (Vec3, f32, f32) {
-        let (pixel, p_env) = self.pixel_pdf(w);
-        let p_hot = if self.hot().is_some() {
-            self.hot_pdf(w)
-        } else {
-            0.0
+        let (pixel, p_env, index) = self.pixel_pdf(w);
+        let p_hot = match (self.hot_image(), index) {
+            (Some((hot, width, height)), Some(index)) => hot.pdf(index, width, height),
+            _ => 0.0,
         };
         (pixel * self.strength, p_env, p_hot)
     }
@@ -400,8 +398,7 @@ fn reach_weight(
 /// Cycles' bilinear lookup of an environment image (`EXTENSION_REPEAT`): at `(u·w − ½,
 /// v·h − ½)` between the four nearest pixel centres, the pixel indices wrapping in both
 /// directions (across a pole the top row is read with the bottom one, as Cycles does).
-fn bilinear(pixels: &[Vec3], width: u32, height: u32, m: Vec3) -> Vec3 {
-    let (u, v) = map_uv(m);
+fn bilinear(pixels: &[Vec3], width: u32, height: u32, (u, v): (f32, f32)) -> Vec3 {
     let x = u * width as f32 - 0.5;
     let y = v * height as f32 - 0.5;
     let (x0, y0) = (x.floor(), y.floor());
@@ -434,7 +431,11 @@ fn map_uv(m: Vec3) -> (f32, f32) {
 
 /// The pixel (column, row) a map direction falls in.
 fn pixel_of(m: Vec3, width: u32, height: u32) -> (u32, u32) {
-    let (u, v) = map_uv(m);
+    pixel_at(map_uv(m), width, height)
+}
+
+/// The pixel (column, row) that image coordinates `(u, v)` fall in.
+fn pixel_at((u, v): (f32, f32), width: u32, height: u32) -> (u32, u32) {
     let i = ((u * width as f32) as u32).min(width - 1);
     let j = ((v * height as f32) as u32).min(height - 1);
     (i, j)
