@@ -34,12 +34,17 @@ import json
 import math
 import os
 import shutil
-import subprocess
 import sys
-import time
 
 import bpy
 import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from common import (  # noqa: E402
+    alpha_mask, cycles_two_seeds, cycles_window_portal, export_gltf, lambert_material,
+    look_rotation, principled_to_diffuse, print_region_table, region_stats,
+    run_portalview, script_argv, set_resolution, write_json,
+)
 
 HDRI_DIR = "/usr/share/blender/datafiles/studiolights/world"
 ROOM = (4.0, 5.0, 2.6)  # x, y, z extent; the room spans x in [-2, 2], y in [-2.5, 2.5]
@@ -49,10 +54,10 @@ FLOOR_ALBEDO = (0.6, 0.55, 0.5)
 CAMERA_AT = (1.3, -2.2, 1.1)
 CAMERA_TARGET = (-0.3, 2.5, 1.45)
 LENS = 18.0
+BOUNCES = ("diffuse", "glossy", "transmission")  # each limited to depth - 1 as max_bounces
 
 
 def args():
-    argv = sys.argv[sys.argv.index("--") + 1 :] if "--" in sys.argv else []
     p = argparse.ArgumentParser()
     p.add_argument("--out", default="/work/refs/hdri_room")
     p.add_argument("--portalview", help="render each glTF with it and compare")
@@ -76,18 +81,7 @@ def args():
     p.add_argument("--interpolations", default="Linear,Closest")
     p.add_argument("--force", action="store_true", help="render Cycles again")
     p.add_argument("--map-resolution", type=int, default=4096, help="Cycles' world sampling map")
-    return p.parse_args(argv)
-
-
-def lambert(name, color):
-    """A Principled BSDF with Specular 0 (exported as a Lambertian glTF material)."""
-    m = bpy.data.materials.new(name)
-    m.use_nodes = True
-    bsdf = m.node_tree.nodes["Principled BSDF"]
-    bsdf.inputs["Base Color"].default_value = (*color, 1.0)
-    bsdf.inputs["Specular"].default_value = 0.0
-    bsdf.inputs["Roughness"].default_value = 1.0
-    return m
+    return p.parse_args(script_argv())
 
 
 def quad_facing(corners, inward):
@@ -133,18 +127,12 @@ def room_quads():
     return floor, walls
 
 
-def look_rotation(frm, to, track="-Z"):
-    from mathutils import Vector
-
-    return (Vector(to) - Vector(frm)).to_track_quat(track, "Y").to_euler()
-
-
 def build_scene(a, interpolation, hdri_path):
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
     floor, walls = room_quads()
-    mesh_object("Floor", floor, lambert("Floor", FLOOR_ALBEDO))
-    mesh_object("Walls", walls, lambert("Walls", ALBEDO))
+    mesh_object("Floor", floor, lambert_material("Floor", FLOOR_ALBEDO))
+    mesh_object("Walls", walls, lambert_material("Walls", ALBEDO))
 
     # The window portal: the opening, its face normal into the room (-Y).
     wx0, wx1, wz0, wz1 = WINDOW
@@ -152,7 +140,7 @@ def build_scene(a, interpolation, hdri_path):
     portal = mesh_object(
         "Window",
         [quad_facing([(wx0, Y, wz0), (wx1, Y, wz0), (wx1, Y, wz1), (wx0, Y, wz1)], (0, -1, 0))],
-        lambert("Portal", (0.0, 0.0, 0.0)),
+        lambert_material("Portal", (0.0, 0.0, 0.0)),
     )
     portal["portal_target"] = "environment"
     portal.hide_render = True  # invisible to Cycles; portalview never renders portals
@@ -195,123 +183,7 @@ def build_scene(a, interpolation, hdri_path):
     scene["environment_rotation"] = a.rotation
     scene["environment_interpolation"] = interpolation.lower()  # "linear" or "closest"
 
-    scene.render.resolution_x = a.width
-    scene.render.resolution_y = a.height
-    scene.render.resolution_percentage = 100
-
-
-def export(path):
-    os.makedirs(os.path.dirname(path), exist_ok=True)
-    bpy.ops.export_scene.gltf(
-        filepath=path,
-        export_format="GLTF_SEPARATE",
-        export_extras=True,
-        export_lights=True,
-        export_cameras=True,
-        export_yup=True,
-        export_apply=True,
-    )
-
-
-def add_cycles_portal():
-    """A Cycles light portal in the window (after export: glTF has no such thing)."""
-    wx0, wx1, wz0, wz1 = WINDOW
-    Y = ROOM[1] / 2
-    at = ((wx0 + wx1) / 2, Y, (wz0 + wz1) / 2)
-    bpy.ops.object.light_add(type="AREA", location=at)
-    light = bpy.context.object
-    light.name = "CyclesPortal"
-    light.data.shape = "RECTANGLE"
-    light.data.size = wx1 - wx0
-    light.data.size_y = wz1 - wz0
-    light.data.cycles.is_portal = True
-    # An area light shines along its local -Z: into the room (-Y); local Y up (+Z).
-    light.rotation_euler = (-math.pi / 2, 0.0, 0.0)
-
-
-def swap_to_diffuse():
-    for m in bpy.data.materials:
-        if not m.use_nodes or "Principled BSDF" not in m.node_tree.nodes:
-            continue
-        nodes, links = m.node_tree.nodes, m.node_tree.links
-        p = nodes["Principled BSDF"]
-        d = nodes.new("ShaderNodeBsdfDiffuse")
-        d.inputs["Color"].default_value = p.inputs["Base Color"].default_value
-        for link in list(p.inputs["Base Color"].links):
-            links.new(link.from_socket, d.inputs["Color"])
-        for link in list(p.inputs["Normal"].links):
-            links.new(link.from_socket, d.inputs["Normal"])
-        links.new(d.outputs["BSDF"], nodes["Material Output"].inputs["Surface"])
-        nodes.remove(p)
-
-
-def render_cycles(path, spp, seed, threads, depth, transparent=False):
-    s = bpy.context.scene
-    s.render.engine = "CYCLES"
-    s.cycles.device = "CPU"
-    s.render.threads_mode = "FIXED"
-    s.render.threads = threads
-    s.cycles.samples = spp
-    s.cycles.use_adaptive_sampling = False
-    s.cycles.use_denoising = False
-    b = max(depth - 1, 0)
-    s.cycles.max_bounces = b
-    s.cycles.diffuse_bounces = b
-    s.cycles.glossy_bounces = b
-    s.cycles.transmission_bounces = b
-    s.cycles.transparent_max_bounces = 8
-    s.cycles.sample_clamp_direct = 0.0
-    s.cycles.sample_clamp_indirect = 0.0
-    s.cycles.pixel_filter_type = "BOX"
-    s.cycles.filter_width = 1.0
-    s.cycles.seed = seed
-    s.render.film_transparent = transparent
-    s.view_settings.view_transform = "Standard"
-    s.render.image_settings.file_format = "OPEN_EXR"
-    s.render.image_settings.color_mode = "RGBA"
-    s.render.image_settings.color_depth = "32"
-    s.render.filepath = path
-    bpy.ops.render.render(write_still=True)
-
-
-def load_exr(path, alpha=False):
-    img = bpy.data.images.load(path)
-    px = np.array(img.pixels[:], dtype=np.float64).reshape(img.size[1], img.size[0], 4)
-    bpy.data.images.remove(img)
-    px = px[::-1]  # top row first
-    return px if alpha else px[..., :3]
-
-
-def luminance(rgb):
-    return rgb @ np.array([0.2126, 0.7152, 0.0722])
-
-
-def run_portalview(exe, gltf, path, a, extra=()):
-    env = dict(os.environ, RAYON_NUM_THREADS=str(a.pv_threads))
-    cmd = [
-        exe, "render", "--scene", gltf, "--width", str(a.width), "--height", str(a.height),
-        "--spp", str(a.pv_spp), "--seed", "1", "--max-depth", str(a.depth), "--out", path,
-        *a.pv_args.split(), *extra,
-    ]
-    t0 = time.time()
-    r = subprocess.run(cmd, env=env, capture_output=True, text=True)
-    if r.returncode != 0:
-        print(f"portalview failed on {gltf}:\n{r.stderr.strip()}")
-        return None
-    print(f"  portalview {path}: {time.time() - t0:.0f} s")
-    return load_exr(path)
-
-
-def stats(cycles, other, masks):
-    cy = (cycles[0] + cycles[1]) / 2
-    noise = np.abs(cycles[0] - cycles[1]) / 2
-    rows = []
-    for region, m in masks.items():
-        c = cy[m].mean()
-        ratio = other[m].mean() / c if other is not None else float("nan")
-        rms = math.sqrt(np.mean((other[m] - cy[m]) ** 2)) / c if other is not None else float("nan")
-        rows.append((region, int(m.sum()), c, ratio, rms, math.sqrt(np.mean(noise[m] ** 2)) / c))
-    return rows
+    set_resolution(scene, a.width, a.height)
 
 
 def main():
@@ -327,40 +199,27 @@ def main():
         hdri = os.path.join(os.path.dirname(gltf), a.hdri)
         shutil.copyfile(src, hdri)
         build_scene(a, interpolation, hdri)
-        export(gltf)
+        export_gltf(gltf)
         with open(gltf) as f:
             g = json.load(f)
         print(f"{tag}: scene extras {g['scenes'][0].get('extras')}; portal node extras "
               f"{[n.get('extras') for n in g['nodes'] if n.get('name') == 'Window']}")
-        swap_to_diffuse()
-        add_cycles_portal()
-        mask_path = os.path.join(out, "mask.exr")
-        if a.force or not os.path.exists(mask_path):
-            render_cycles(mask_path, 16, 1, a.threads, 1, transparent=True)
-        alpha = load_exr(mask_path, alpha=True)[..., 3]
+        principled_to_diffuse()
+        # A Cycles light portal in the window (after export: glTF has no such thing).
+        wx0, wx1, wz0, wz1 = WINDOW
+        cycles_window_portal(wx0, wx1, wz0, wz1, ROOM[1] / 2, name="CyclesPortal")
+        alpha = alpha_mask(os.path.join(out, "mask.exr"), a.force, threads=a.threads, limit=BOUNCES)
         masks = {"room": alpha > 0.999, "sky": alpha < 0.001}
-        cycles = []
-        for seed in (1, 2):
-            path = os.path.join(out, f"cycles-{tag}-d{a.depth}-{seed}.exr")
-            if a.force or not os.path.exists(path):
-                t0 = time.time()
-                render_cycles(path, a.spp, seed, a.threads, a.depth)
-                print(f"  Cycles {path}: {time.time() - t0:.0f} s")
-            cycles.append(luminance(load_exr(path)))
+        cycles = cycles_two_seeds(os.path.join(out, f"cycles-{tag}-d{a.depth}"), a.spp, a.force,
+                                  threads=a.threads, depth=a.depth, limit=BOUNCES)
         pv = None
         if a.portalview:
             path = os.path.join(out, "portalview", f"{tag}-d{a.depth}.exr")
-            os.makedirs(os.path.dirname(path), exist_ok=True)
-            pv = run_portalview(a.portalview, gltf, path, a)
-            pv = luminance(pv) if pv is not None else None
-        for row in stats(cycles, pv, masks):
+            pv = run_portalview(a.portalview, gltf, path, a, depth=a.depth, extra=a.pv_args.split())
+        for row in region_stats(cycles, pv, masks):
             table.append((tag, *row))
-    print(f"\n{'interp':<8} {'region':<6} {'pixels':>6} {'Cycles mean':>11} {'ratio':>7} "
-          f"{'RMS diff':>9} {'cy noise':>9}")
-    for tag, region, n, c, ratio, rms, nz in table:
-        print(f"{tag:<8} {region:<6} {n:6d} {c:11.5f} {ratio:7.3f} {100 * rms:8.1f}% {100 * nz:8.1f}%")
-    with open(os.path.join(out, f"table-d{a.depth}.json"), "w") as f:
-        json.dump(table, f, indent=1)
+    print_region_table(table, lead="interp")
+    write_json(os.path.join(out, f"table-d{a.depth}.json"), table)
 
 
 main()

@@ -21,6 +21,7 @@ Direct illumination only (`direct`: an emitter and a BSDF sample, MIS), box pixe
 """
 
 import json
+import os
 import sys
 
 import drjit as dr
@@ -28,6 +29,9 @@ import mitsuba as mi
 import numpy as np
 
 mi.set_variant("scalar_rgb")
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from common import mitsuba_flip_v, mitsuba_points, mitsuba_sensor  # noqa: E402
 
 CONFIGS = {
     "default": {"flip_invalid_normals": True, "use_shadowing_function": True},
@@ -44,8 +48,7 @@ def panel(s, config):
             "filename": s["normalmap"],
             "raw": True,
             "filter_type": "bilinear",
-            # v' = 1 - v: Blender's v = 0 is the image's bottom row, Mitsuba's its top row.
-            "to_uv": mi.ScalarTransform4f().translate([0, 1, 0]).scale([1, -1, 1]),
+            "to_uv": mitsuba_flip_v(),
         },
         "bsdf": diffuse,
         **CONFIGS[config],
@@ -59,23 +62,10 @@ def panel(s, config):
 
 
 def scene(desc, config):
-    c = desc["camera"]
     d = {
         "type": "scene",
         "integrator": {"type": "direct"},
-        "sensor": {
-            "type": "perspective",
-            "fov_axis": "x",
-            "fov": c["fov_x_degrees"],
-            "to_world": mi.ScalarTransform4f(c["to_world"]),
-            "film": {
-                "type": "hdrfilm",
-                "width": c["width"],
-                "height": c["height"],
-                "rfilter": {"type": "box"},
-                "pixel_format": "rgb",
-            },
-        },
+        "sensor": mitsuba_sensor(desc["camera"]),
     }
     for i, s in enumerate(desc["panels"]):
         d[f"panel{i}"] = panel(s, config)
@@ -88,12 +78,7 @@ def scene(desc, config):
             "emitter": {"type": "area", "radiance": {"type": "rgb", "value": e["radiance"]}},
             "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb", "value": [0, 0, 0]}},
         }
-    for i, p in enumerate(desc.get("points", [])):
-        d[f"point{i}"] = {
-            "type": "point",
-            "position": p["position"],
-            "intensity": {"type": "rgb", "value": p["intensity"]},
-        }
+    d.update(mitsuba_points(desc.get("points", [])))
     return d
 
 

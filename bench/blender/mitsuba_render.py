@@ -7,12 +7,16 @@ Writes the image as a float64 array (rows top first, RGB) for run.py to compare.
 """
 
 import json
+import os
 import sys
 
 import mitsuba as mi
 import numpy as np
 
 mi.set_variant("llvm_ad_rgb")
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from common import mitsuba_flip_v, mitsuba_points, mitsuba_sensor  # noqa: E402
 
 
 def shape(s):
@@ -24,7 +28,7 @@ def shape(s):
             "type": "bitmap",
             "filename": s["texture"],
             "filter_type": s["filter"],
-            "to_uv": mi.ScalarTransform4f().translate([0, 1, 0]).scale([1, -1, 1]),
+            "to_uv": mitsuba_flip_v(),
         }
     d = {
         "type": "ply",
@@ -43,28 +47,10 @@ def main():
     path, out, spp, seed = sys.argv[1], sys.argv[2], int(sys.argv[3]), int(sys.argv[4])
     desc = json.load(open(path))
     scene = {"type": "scene", "integrator": {"type": "direct"}}
-    c = desc["camera"]
-    scene["sensor"] = {
-        "type": "perspective",
-        "fov_axis": "x",
-        "fov": c["fov_x_degrees"],
-        "to_world": mi.ScalarTransform4f(c["to_world"]),
-        "film": {
-            "type": "hdrfilm",
-            "width": c["width"],
-            "height": c["height"],
-            "rfilter": {"type": "box"},
-            "pixel_format": "rgb",
-        },
-    }
+    scene["sensor"] = mitsuba_sensor(desc["camera"])
     for i, s in enumerate(desc["shapes"]):
         scene[f"shape{i}"] = shape(s)
-    for i, p in enumerate(desc["points"]):
-        scene[f"point{i}"] = {
-            "type": "point",
-            "position": p["position"],
-            "intensity": {"type": "rgb", "value": p["intensity"]},
-        }
+    scene.update(mitsuba_points(desc["points"]))
     img = mi.render(mi.load_dict(scene), spp=spp, seed=seed)
     np.save(out, np.array(img, dtype=np.float64)[:, :, :3])
 

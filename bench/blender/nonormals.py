@@ -30,12 +30,15 @@ import argparse
 import json
 import math
 import os
-import struct
-import subprocess
 import sys
-import time
 
 import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from common import (  # noqa: E402
+    alpha_mask, cycles_two_seeds, cycles_window_portal, principled_to_diffuse,
+    print_region_table, region_stats, run_portalview, script_argv, set_resolution, write_json,
+)
 
 X, H, Z = 2.0, 2.6, 2.5  # the room: x in [-X, X], y in [0, H], z in [-Z, Z]
 WINDOW = (-0.8, 0.8, 0.9, 2.1)  # x0, x1, y0, y1 in the z = -Z wall
@@ -45,10 +48,10 @@ CAMERA_TARGET = (-0.3, 1.45, -2.5)
 YFOV = 2 * math.atan(math.tan(math.radians(45.0)) * 0.75)  # 90 degrees across at 4:3
 SUN = {"elevation": 45.0, "azimuth": 15.0, "radius": 4.0, "radiance": 400.0}
 SKY_SIZE = (512, 256)
+BOUNCES = ("diffuse",)  # limited to depth - 1 as max_bounces (glossy, transmission: Blender's)
 
 
 def args():
-    argv = sys.argv[sys.argv.index("--") + 1 :] if "--" in sys.argv else []
     p = argparse.ArgumentParser()
     p.add_argument("--out", default="/work/refs/nonormals")
     p.add_argument("--portalview")
@@ -60,7 +63,7 @@ def args():
     p.add_argument("--pv-threads", type=int, default=1)
     p.add_argument("--threads", type=int, default=1)
     p.add_argument("--force", action="store_true")
-    return p.parse_args(argv)
+    return p.parse_args(script_argv())
 
 
 # --- the sky ----------------------------------------------------------------------------------
@@ -341,68 +344,11 @@ def blender_scene(gltf, hdr, width, height):
     env.interpolation = "Linear"
     links.new(env.outputs["Color"], nodes["Background"].inputs["Color"])
     nodes["Background"].inputs["Strength"].default_value = 1.0
-    for m in bpy.data.materials:
-        if not m.use_nodes or "Principled BSDF" not in m.node_tree.nodes:
-            continue
-        nt = m.node_tree
-        p = nt.nodes["Principled BSDF"]
-        d = nt.nodes.new("ShaderNodeBsdfDiffuse")
-        d.inputs["Color"].default_value = p.inputs["Base Color"].default_value
-        out = [n for n in nt.nodes if n.type == "OUTPUT_MATERIAL"][0]
-        nt.links.new(d.outputs["BSDF"], out.inputs["Surface"])
-        nt.nodes.remove(p)
+    principled_to_diffuse()
     # A Cycles light portal in the window (Blender Z up: the window is at y = +Z, facing -Y).
     wx0, wx1, wy0, wy1 = WINDOW
-    bpy.ops.object.light_add(type="AREA", location=((wx0 + wx1) / 2, Z, (wy0 + wy1) / 2))
-    light = bpy.context.object
-    light.data.shape = "RECTANGLE"
-    light.data.size, light.data.size_y = wx1 - wx0, wy1 - wy0
-    light.data.cycles.is_portal = True
-    light.rotation_euler = (-math.pi / 2, 0.0, 0.0)
-    scene.render.resolution_x, scene.render.resolution_y = width, height
-    scene.render.resolution_percentage = 100
-
-
-def render_cycles(path, spp, seed, threads, depth, transparent=False):
-    import bpy
-
-    s = bpy.context.scene
-    s.render.engine = "CYCLES"
-    s.cycles.device = "CPU"
-    s.render.threads_mode = "FIXED"
-    s.render.threads = threads
-    s.cycles.samples = spp
-    s.cycles.use_adaptive_sampling = False
-    s.cycles.use_denoising = False
-    b = max(depth - 1, 0)
-    s.cycles.max_bounces = b
-    s.cycles.diffuse_bounces = b
-    s.cycles.sample_clamp_direct = 0.0
-    s.cycles.sample_clamp_indirect = 0.0
-    s.cycles.pixel_filter_type = "BOX"
-    s.cycles.filter_width = 1.0
-    s.cycles.seed = seed
-    s.render.film_transparent = transparent
-    s.view_settings.view_transform = "Standard"
-    s.render.image_settings.file_format = "OPEN_EXR"
-    s.render.image_settings.color_mode = "RGBA"
-    s.render.image_settings.color_depth = "32"
-    s.render.filepath = path
-    bpy.ops.render.render(write_still=True)
-
-
-def load_exr(path, alpha=False):
-    import bpy
-
-    img = bpy.data.images.load(path)
-    px = np.array(img.pixels[:], dtype=np.float64).reshape(img.size[1], img.size[0], 4)
-    bpy.data.images.remove(img)
-    px = px[::-1]
-    return px if alpha else px[..., :3]
-
-
-def luminance(rgb):
-    return rgb @ np.array([0.2126, 0.7152, 0.0722])
+    cycles_window_portal(wx0, wx1, wy0, wy1, Z)
+    set_resolution(scene, width, height)
 
 
 def main():
@@ -414,61 +360,19 @@ def main():
     gltf = write_gltf(out, a.width, a.height)
     print(f"wrote {gltf} and {hdr}")
     blender_scene(gltf, hdr, a.width, a.height)
-    mask_path = os.path.join(out, "mask.exr")
-    if a.force or not os.path.exists(mask_path):
-        render_cycles(mask_path, 16, 1, a.threads, 1, transparent=True)
-    alpha = load_exr(mask_path, alpha=True)[..., 3]
-    box_path = os.path.join(out, "mask-box.exr")
-    if a.force or not os.path.exists(box_path):
-        import bpy
-
-        hidden = [o for o in bpy.context.scene.objects if o.type == "MESH" and o.name != "Box"]
-        for o in hidden:
-            was = o.hide_render
-            o["was_hidden"], o.hide_render = was, True
-        render_cycles(box_path, 16, 1, a.threads, 1, transparent=True)
-        for o in hidden:
-            o.hide_render = bool(o["was_hidden"])
-    box = load_exr(box_path, alpha=True)[..., 3]
+    alpha = alpha_mask(os.path.join(out, "mask.exr"), a.force, threads=a.threads, limit=BOUNCES)
+    box = alpha_mask(os.path.join(out, "mask-box.exr"), a.force, only="Box", threads=a.threads,
+                     limit=BOUNCES)
     masks = {"room": alpha > 0.999, "sky": alpha < 0.001, "box": box > 0.999}
-    cycles = []
-    for seed in (1, 2):
-        path = os.path.join(out, f"cycles-d{a.depth}-{seed}.exr")
-        if a.force or not os.path.exists(path):
-            t0 = time.time()
-            render_cycles(path, a.spp, seed, a.threads, a.depth)
-            print(f"  Cycles {path}: {time.time() - t0:.0f} s")
-        cycles.append(luminance(load_exr(path)))
-    cy = (cycles[0] + cycles[1]) / 2
-    noise = np.abs(cycles[0] - cycles[1]) / 2
+    cycles = cycles_two_seeds(os.path.join(out, f"cycles-d{a.depth}"), a.spp, a.force,
+                              threads=a.threads, depth=a.depth, limit=BOUNCES)
     pv = None
     if a.portalview:
-        path = os.path.join(out, "portalview", f"d{a.depth}.exr")
-        os.makedirs(os.path.dirname(path), exist_ok=True)
-        cmd = [
-            a.portalview, "render", "--scene", gltf, "--width", str(a.width), "--height",
-            str(a.height), "--spp", str(a.pv_spp), "--seed", "1", "--max-depth", str(a.depth),
-            "--out", path,
-        ]
-        t0 = time.time()
-        r = subprocess.run(cmd, env=dict(os.environ, RAYON_NUM_THREADS=str(a.pv_threads)),
-                           capture_output=True, text=True)
-        if r.returncode == 0:
-            print(f"  portalview {path}: {time.time() - t0:.0f} s")
-            pv = luminance(load_exr(path))
-        else:
-            print(f"portalview failed:\n{r.stderr.strip()}")
-    print(f"\n{'region':<6} {'pixels':>6} {'Cycles mean':>11} {'ratio':>7} {'RMS diff':>9} {'cy noise':>9}")
-    rows = []
-    for region, m in masks.items():
-        c = cy[m].mean()
-        ratio = pv[m].mean() / c if pv is not None else float("nan")
-        rms = math.sqrt(np.mean((pv[m] - cy[m]) ** 2)) / c if pv is not None else float("nan")
-        nz = math.sqrt(np.mean(noise[m] ** 2)) / c
-        rows.append((region, int(m.sum()), c, ratio, rms, nz))
-        print(f"{region:<6} {int(m.sum()):6d} {c:11.5f} {ratio:7.3f} {100 * rms:8.1f}% {100 * nz:8.1f}%")
-    with open(os.path.join(out, f"table-d{a.depth}.json"), "w") as f:
-        json.dump(rows, f, indent=1)
+        pv = run_portalview(a.portalview, gltf, os.path.join(out, "portalview", f"d{a.depth}.exr"),
+                            a, depth=a.depth)
+    rows = region_stats(cycles, pv, masks)
+    print_region_table(rows)
+    write_json(os.path.join(out, f"table-d{a.depth}.json"), rows)
 
 
 main()

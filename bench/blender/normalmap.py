@@ -67,6 +67,14 @@ import zlib
 import bpy
 import numpy as np
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from common import (  # noqa: E402
+    HERE, black_world, cycles_two_seeds, emission_material, export_gltf, lambert_material,
+    look_rotation, luminance, mesh_triangles, mitsuba_camera, mitsuba_point,
+    principled_to_diffuse, region_compare, run_portalview, script_argv, set_resolution,
+    two_seed_mean, write_json, write_ply,
+)
+
 ALBEDO = 0.8
 POINT_POWER = 120.0  # W
 POINT_AT = (-1.2, -1.6, 1.2)
@@ -89,7 +97,6 @@ LENS = 45.0
 
 
 def args():
-    argv = sys.argv[sys.argv.index("--") + 1 :] if "--" in sys.argv else []
     p = argparse.ArgumentParser()
     p.add_argument("--out", default="/work/refs/normalmap")
     p.add_argument("--portalview", help="render every glTF variant with it and compare")
@@ -112,7 +119,7 @@ def args():
         action="store_true",
         help="also export a Diffuse BSDF version and print what glTF material it becomes",
     )
-    return p.parse_args(argv)
+    return p.parse_args(script_argv())
 
 
 # --- images -----------------------------------------------------------------------------------
@@ -180,13 +187,11 @@ def make_maps(out):
 
 
 def panel_material(name, image_path):
-    m = bpy.data.materials.new(name)
-    m.use_nodes = True
+    """A Lambertian Principled BSDF of albedo ALBEDO whose Normal comes from a tangent-space
+    Normal Map node (strength 1) fed by the Non-Color PNG at image_path, read bilinearly."""
+    m = lambert_material(name, (ALBEDO, ALBEDO, ALBEDO))
     nodes, links = m.node_tree.nodes, m.node_tree.links
     bsdf = nodes["Principled BSDF"]
-    bsdf.inputs["Base Color"].default_value = (ALBEDO, ALBEDO, ALBEDO, 1.0)
-    bsdf.inputs["Specular"].default_value = 0.0
-    bsdf.inputs["Roughness"].default_value = 1.0
     img = bpy.data.images.load(image_path)
     img.colorspace_settings.name = "Non-Color"
     tex = nodes.new("ShaderNodeTexImage")
@@ -198,24 +203,6 @@ def panel_material(name, image_path):
     links.new(tex.outputs["Color"], nm.inputs["Color"])
     links.new(nm.outputs["Normal"], bsdf.inputs["Normal"])
     return m
-
-
-def emission(name, color, strength):
-    m = bpy.data.materials.new(name)
-    m.use_nodes = True
-    nodes = m.node_tree.nodes
-    nodes.remove(nodes["Principled BSDF"])
-    e = nodes.new("ShaderNodeEmission")
-    e.inputs["Color"].default_value = (*color, 1.0)
-    e.inputs["Strength"].default_value = strength
-    m.node_tree.links.new(e.outputs["Emission"], nodes["Material Output"].inputs["Surface"])
-    return m
-
-
-def look_rotation(frm, to, track="-Z"):
-    from mathutils import Vector
-
-    return (Vector(to) - Vector(frm)).to_track_quat(track, "Y").to_euler()
 
 
 def build_scene(maps, light, width, height):
@@ -242,7 +229,7 @@ def build_scene(maps, light, width, height):
         panel.name = "Emitter"
         # The face normal (+Z) toward the wall's centre.
         panel.rotation_euler = look_rotation(AREA_AT, (0.0, 0.0, 0.0), track="Z")
-        panel.data.materials.append(emission("Emitter", (1.0, 1.0, 1.0), AREA_STRENGTH))
+        panel.data.materials.append(emission_material("Emitter", (1.0, 1.0, 1.0), AREA_STRENGTH))
 
     bpy.ops.object.camera_add(location=CAMERA_AT, rotation=(math.pi / 2, 0.0, 0.0))
     cam = bpy.context.object
@@ -250,26 +237,8 @@ def build_scene(maps, light, width, height):
     cam.data.lens = LENS
     scene.camera = cam
 
-    scene.world = bpy.data.worlds.new("Black")
-    scene.world.use_nodes = True
-    scene.world.node_tree.nodes["Background"].inputs["Strength"].default_value = 0.0
-    scene.render.resolution_x = width
-    scene.render.resolution_y = height
-    scene.render.resolution_percentage = 100
-
-
-def export(path, tangents):
-    os.makedirs(os.path.dirname(path), exist_ok=True)
-    bpy.ops.export_scene.gltf(
-        filepath=path,
-        export_format="GLTF_SEPARATE",
-        export_extras=True,
-        export_lights=True,
-        export_cameras=True,
-        export_yup=True,
-        export_apply=True,
-        export_tangents=tangents,
-    )
+    black_world(scene)
+    set_resolution(scene, width, height)
 
 
 def check_gltf(path):
@@ -305,57 +274,6 @@ def green_inverted_copy(src_dir, dst_dir, mats, out):
             shutil.copyfile(
                 os.path.join(out, "maps", f"{name}-ginv.png"), os.path.join(dst_dir, m["uri"])
             )
-
-
-def swap_to_diffuse():
-    """The glTF file describes Lambertian surfaces; Cycles' Diffuse BSDF is one. The Normal
-    link (from the Normal Map node) is kept."""
-    for m in bpy.data.materials:
-        if not m.use_nodes or "Principled BSDF" not in m.node_tree.nodes:
-            continue
-        nodes, links = m.node_tree.nodes, m.node_tree.links
-        p = nodes["Principled BSDF"]
-        d = nodes.new("ShaderNodeBsdfDiffuse")
-        d.inputs["Color"].default_value = p.inputs["Base Color"].default_value
-        for link in list(p.inputs["Base Color"].links):
-            links.new(link.from_socket, d.inputs["Color"])
-        for link in list(p.inputs["Normal"].links):
-            links.new(link.from_socket, d.inputs["Normal"])
-        links.new(d.outputs["BSDF"], nodes["Material Output"].inputs["Surface"])
-        nodes.remove(p)
-
-
-def render_cycles(path, spp, seed, threads):
-    s = bpy.context.scene
-    s.render.engine = "CYCLES"
-    s.cycles.device = "CPU"
-    s.render.threads_mode = "FIXED"
-    s.render.threads = threads
-    s.cycles.samples = spp
-    s.cycles.use_adaptive_sampling = False
-    s.cycles.use_denoising = False
-    s.cycles.max_bounces = 0  # direct light only, as portalview's --max-depth 1
-    s.cycles.sample_clamp_direct = 0.0
-    s.cycles.sample_clamp_indirect = 0.0
-    s.cycles.pixel_filter_type = "BOX"
-    s.cycles.filter_width = 1.0
-    s.cycles.seed = seed
-    s.view_settings.view_transform = "Standard"
-    s.render.image_settings.file_format = "OPEN_EXR"
-    s.render.image_settings.color_depth = "32"
-    s.render.filepath = path
-    bpy.ops.render.render(write_still=True)
-
-
-def load_exr(path):
-    img = bpy.data.images.load(path)
-    px = np.array(img.pixels[:], dtype=np.float64).reshape(img.size[1], img.size[0], 4)
-    bpy.data.images.remove(img)
-    return px[::-1, :, :3]  # top row first
-
-
-def luminance(rgb):
-    return rgb @ np.array([0.2126, 0.7152, 0.0722])
 
 
 # --- regions and the closed form --------------------------------------------------------------
@@ -545,47 +463,7 @@ def cycles_model(width, height, light_at, ss=6):
     return levels
 
 
-# --- main -------------------------------------------------------------------------------------
-
-
 # --- Mitsuba 3 -------------------------------------------------------------------------------
-
-
-def write_ply(path, tris, uvs):
-    """Triangles (n, 3, 3) with per-corner uvs (n, 3, 2) as a binary PLY, vertices unshared
-    (as run.py writes them)."""
-    n = len(tris)
-    verts = np.concatenate([np.reshape(tris, (-1, 3)), np.reshape(uvs, (-1, 2))], axis=1)
-    faces = np.zeros(n, dtype=[("k", "u1"), ("i", "<i4", 3)])
-    faces["k"] = 3
-    faces["i"] = np.arange(3 * n).reshape(n, 3)
-    header = (
-        "ply\nformat binary_little_endian 1.0\n"
-        f"element vertex {3 * n}\nproperty float x\nproperty float y\nproperty float z\n"
-        "property float u\nproperty float v\n"
-        f"element face {n}\nproperty list uchar int vertex_indices\nend_header\n"
-    )
-    with open(path, "wb") as f:
-        f.write(header.encode())
-        f.write(verts.astype("<f4").tobytes())
-        f.write(faces.tobytes())
-
-
-def mesh_triangles(obj):
-    """World-space triangles of obj's evaluated mesh (Blender's winding) and their corners' uvs
-    as Blender has them (v up the image)."""
-    depsgraph = bpy.context.evaluated_depsgraph_get()
-    ev = obj.evaluated_get(depsgraph)
-    mesh = ev.to_mesh()
-    mesh.calc_loop_triangles()
-    m = np.array(obj.matrix_world)
-    uv_layer = mesh.uv_layers.active.data if mesh.uv_layers.active else None
-    tris, uvs = [], []
-    for t in mesh.loop_triangles:
-        tris.append([(m @ np.array([*mesh.vertices[v].co, 1.0]))[:3] for v in t.vertices])
-        uvs.append([tuple(uv_layer[l].uv) if uv_layer else (0.0, 0.0) for l in t.loops])
-    ev.to_mesh_clear()
-    return np.array(tris), np.array(uvs)
 
 
 def mitsuba_scene(out, maps, light, width, height):
@@ -598,9 +476,7 @@ def mitsuba_scene(out, maps, light, width, height):
     desc = {"panels": [], "areas": [], "points": []}
     for obj in bpy.context.scene.objects:
         if obj.type == "LIGHT":
-            p = obj.data.energy / (4 * math.pi)
-            desc["points"].append({"position": list(obj.matrix_world.translation),
-                                   "intensity": [p * c for c in obj.data.color]})
+            desc["points"].append(mitsuba_point(obj))
         if obj.type != "MESH":
             continue
         tris, uvs = mesh_triangles(obj)
@@ -615,26 +491,19 @@ def mitsuba_scene(out, maps, light, width, height):
                 "ply": ply,
                 "radiance": [e["Strength"].default_value * c for c in e["Color"].default_value[:3]],
             })
-    cam = bpy.context.scene.camera
-    to_world = np.array(cam.matrix_world) @ np.diag([-1.0, 1.0, -1.0, 1.0])
-    desc["camera"] = {"to_world": to_world.tolist(), "fov_x_degrees": math.degrees(cam.data.angle_x),
-                      "width": width, "height": height}
-    path = os.path.join(d, f"{light}.json")
-    with open(path, "w") as f:
-        json.dump(desc, f, indent=1)
-    return path
+    desc["camera"] = mitsuba_camera(width, height)
+    return write_json(os.path.join(d, f"{light}.json"), desc)
 
 
 def run_mitsuba(python, scene_json, a):
     """Mitsuba's renders (normalmap's defaults, and plain), seeds 1 and 2, as luminance images:
     {config: (seed 1, seed 2)}."""
-    here = os.path.dirname(os.path.abspath(__file__))
     images = {"default": [], "plain": []}
     for seed in (1, 2):
         prefix = f"{os.path.splitext(scene_json)[0]}-{seed}"
         t0 = time.time()
         r = subprocess.run(
-            [python, os.path.join(here, "mitsuba_normalmap.py"), scene_json, prefix,
+            [python, os.path.join(HERE, "mitsuba_normalmap.py"), scene_json, prefix,
              str(a.mi_spp), str(seed), str(a.mi_threads)],
             capture_output=True, text=True,
         )
@@ -647,19 +516,7 @@ def run_mitsuba(python, scene_json, a):
     return images
 
 
-def run_portalview(exe, gltf, path, a, seed=1):
-    env = dict(os.environ, RAYON_NUM_THREADS=str(a.pv_threads))
-    cmd = [
-        exe, "render", "--scene", gltf, "--width", str(a.width), "--height", str(a.height),
-        "--spp", str(a.pv_spp), "--seed", str(seed), "--max-depth", "1", "--out", path,
-    ]
-    t0 = time.time()
-    r = subprocess.run(cmd, env=env, capture_output=True, text=True)
-    if r.returncode != 0:
-        print(f"portalview failed on {gltf}:\n{r.stderr.strip()}")
-        return None
-    print(f"  portalview {os.path.relpath(path)}: {time.time() - t0:.0f} s")
-    return load_exr(path)
+# --- main -------------------------------------------------------------------------------------
 
 
 def main():
@@ -675,7 +532,7 @@ def main():
         for tangents in (True, False):
             tag = f"{light}-{'tangents' if tangents else 'notangents'}"
             path = os.path.join(out, tag, "scene.gltf")
-            export(path, tangents)
+            export_gltf(path, tangents)
             g, mats, has_tangent = check_gltf(path)
             print(f"{tag}: TANGENT in {sum(has_tangent)}/{len(has_tangent)} primitives; "
                   + ", ".join(f"{k}: normalTexture {'yes' if v['normalTexture'] else 'NO'}"
@@ -690,73 +547,48 @@ def main():
         mitsuba_json = (
             mitsuba_scene(out, maps, light, a.width, a.height) if a.mitsuba_python else None
         )
-        swap_to_diffuse()
+        principled_to_diffuse()
         masks, _ = panel_masks(a.width, a.height)
-        cycles = []
-        for seed in (1, 2):
-            path = os.path.join(out, f"cycles-{light}-{seed}.exr")
-            if a.force or not os.path.exists(path):
-                t0 = time.time()
-                render_cycles(path, a.spp, seed, a.threads)
-                print(f"  Cycles {path}: {time.time() - t0:.0f} s")
-            cycles.append(luminance(load_exr(path)))
+        cycles = cycles_two_seeds(os.path.join(out, f"cycles-{light}"), a.spp, a.force,
+                                  threads=a.threads)
         report[light] = (variants, masks, cycles, mitsuba_json)
 
     rows, mi_rows = [], []
     for light, (variants, masks, cycles, mitsuba_json) in report.items():
-        cy = (cycles[0] + cycles[1]) / 2
-        noise = np.abs(cycles[0] - cycles[1]) / 2  # per-pixel standard error of the mean, roughly
+        cy, noise = two_seed_mean(*cycles)
         if light == "point":
             cf = closed_form_point(a.width, a.height)
             for name, images in cf.items():
                 m = masks[name]
                 for label, img in zip(("closed form", "c.f. w/o shadowing"), images):
-                    rows.append((light, label, name, cy[m].mean(), img[m].mean() / cy[m].mean(),
-                                 math.sqrt(np.mean((img[m] - cy[m]) ** 2)) / cy[m].mean(),
-                                 math.sqrt(np.mean(noise[m] ** 2)) / cy[m].mean()))
+                    rows.append((light, label, name, *region_compare(cy, noise, img, m)))
             model = cycles_model(a.width, a.height, POINT_AT)
             for label, img in model.items():
                 for name, m in masks.items():
-                    rows.append((light, f"model {label}", name, cy[m].mean(),
-                                 img[m].mean() / cy[m].mean(),
-                                 math.sqrt(np.mean((img[m] - cy[m]) ** 2)) / cy[m].mean(),
-                                 math.sqrt(np.mean(noise[m] ** 2)) / cy[m].mean()))
+                    rows.append((light, f"model {label}", name, *region_compare(cy, noise, img, m)))
         if mitsuba_json:
             for config, (mi1, mi2) in run_mitsuba(a.mitsuba_python, mitsuba_json, a).items():
-                img = (mi1 + mi2) / 2
-                mi_noise = np.abs(mi1 - mi2) / 2
+                img, mi_noise = two_seed_mean(mi1, mi2)
                 for name, m in masks.items():
-                    c = cy[m].mean()
-                    rows.append((light, f"Mitsuba {config}", name, c, img[m].mean() / c,
-                                 math.sqrt(np.mean((img[m] - cy[m]) ** 2)) / c,
-                                 math.sqrt(np.mean(noise[m] ** 2)) / c))
+                    rows.append((light, f"Mitsuba {config}", name,
+                                 *region_compare(cy, noise, img, m)))
                     if light != "point":
                         continue
                     for level in ("plain", "mitsuba"):
-                        ref = model[level][m]
-                        r = ref.mean()
-                        mi_rows.append((light, f"Mitsuba {config}", f"model {level}", name, r,
-                                        img[m].mean() / r,
-                                        math.sqrt(np.mean((img[m] - ref) ** 2)) / r,
-                                        math.sqrt(np.mean(mi_noise[m] ** 2)) / r))
+                        mi_rows.append((light, f"Mitsuba {config}", f"model {level}", name,
+                                        *region_compare(model[level], mi_noise, img, m)))
         if not a.portalview:
             for name, m in masks.items():
-                rows.append((light, "Cycles only", name, cy[m].mean(), float("nan"), float("nan"),
-                             math.sqrt(np.mean(noise[m] ** 2)) / cy[m].mean()))
+                rows.append((light, "Cycles only", name, *region_compare(cy, noise, None, m)))
             continue
         for tag, gltf in variants.items():
             pv_path = os.path.join(out, "portalview", tag + ".exr")
-            os.makedirs(os.path.dirname(pv_path), exist_ok=True)
-            pv = run_portalview(a.portalview, gltf, pv_path, a)
+            pv = run_portalview(a.portalview, gltf, pv_path, a, show=os.path.relpath(pv_path))
             if pv is None:
                 continue
-            pv = luminance(pv)
             variant = tag.split("-", 1)[1]
             for name, m in masks.items():
-                c = cy[m].mean()
-                rows.append((light, variant, name, c, pv[m].mean() / c,
-                             math.sqrt(np.mean((pv[m] - cy[m]) ** 2)) / c,
-                             math.sqrt(np.mean(noise[m] ** 2)) / c))
+                rows.append((light, variant, name, *region_compare(cy, noise, pv, m)))
     print(f"\n{'light':<6} {'variant':<20} {'panel':<6} {'Cycles mean':>11} {'ratio':>7} "
           f"{'RMS diff':>9} {'cy noise':>9}")
     for light, variant, name, c, ratio, rms, nz in rows:
@@ -770,15 +602,14 @@ def main():
                   f"{100 * rms:8.2f}% {100 * nz:8.2f}%")
     table = "table.json" if a.portalview else "mitsuba-table.json" if a.mitsuba_python else (
         "cycles-table.json")
-    with open(os.path.join(out, table), "w") as f:
-        json.dump(rows + mi_rows, f, indent=1)
+    write_json(os.path.join(out, table), rows + mi_rows)
 
 
 def probe_diffuse_export(out):
     """Exports the panels with a Diffuse BSDF (Normal Map linked) and prints the glTF material."""
-    swap_to_diffuse()
+    principled_to_diffuse()
     path = os.path.join(out, "probe-diffuse", "scene.gltf")
-    export(path, True)
+    export_gltf(path, True)
     _, mats, has_tangent = check_gltf(path)
     print(f"probe: a Diffuse BSDF exports as (TANGENT in {sum(has_tangent)} primitives):")
     for k, v in mats.items():

@@ -2,7 +2,7 @@
 
 Run with Blender 3.4 (Debian's `blender` package) from the repository root:
 
-    blender -b --factory-startup -P bench/cycles/run.py -- \
+    blender -b --factory-startup -P bench/blender/run.py -- \
         --portalview target/release/portalview --out /tmp/cycles-fidelity
 
 It builds an artist's scene in Blender (a flat-shaded Suzanne lit at grazing angles, a textured
@@ -21,7 +21,6 @@ Diffuse BSDF with the same colour input, the material the glTF file describes.
 """
 
 import argparse
-import json
 import math
 import os
 import subprocess
@@ -29,6 +28,13 @@ import sys
 
 import bpy
 import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from common import (  # noqa: E402
+    HERE, black_world, emission_material, export_gltf, lambert_material, load_exr,
+    look_rotation, luminance, mesh_triangles, mitsuba_camera, mitsuba_point,
+    principled_to_diffuse, render_cycles, script_argv, set_resolution, write_json, write_ply,
+)
 
 WIDTH, HEIGHT = 192, 144
 BLOCK = 8
@@ -38,7 +44,6 @@ INTERPOLATION = "Linear" if "Linear" in sys.argv else "Closest"
 
 
 def args():
-    argv = sys.argv[sys.argv.index("--") + 1 :] if "--" in sys.argv else []
     p = argparse.ArgumentParser()
     p.add_argument("--portalview", default="target/release/portalview")
     p.add_argument("--out", default="/tmp/cycles-fidelity")
@@ -65,34 +70,19 @@ def args():
         "--bulb", default="sphere", choices=["sphere", "disc"], help="the emissive mesh's shape"
     )
     p.add_argument("--no-texture", action="store_true", help="plain floor colour")
-    return p.parse_args(argv)
+    return p.parse_args(script_argv())
 
 
 def material(name, color, image=None):
-    """A Principled BSDF with Specular 0 (exported as a Lambertian glTF material)."""
-    m = bpy.data.materials.new(name)
-    m.use_nodes = True
-    bsdf = m.node_tree.nodes["Principled BSDF"]
-    bsdf.inputs["Base Color"].default_value = (*color, 1.0)
-    bsdf.inputs["Specular"].default_value = 0.0
-    bsdf.inputs["Roughness"].default_value = 1.0
+    """A Principled BSDF with Specular 0 (exported as a Lambertian glTF material), its Base
+    Color from `image` (filtered as INTERPOLATION) if given."""
+    m = lambert_material(name, color)
     if image is not None:
-        tex = m.node_tree.nodes.new("ShaderNodeTexImage")
+        nodes = m.node_tree.nodes
+        tex = nodes.new("ShaderNodeTexImage")
         tex.image = image
         tex.interpolation = INTERPOLATION
-        m.node_tree.links.new(tex.outputs["Color"], bsdf.inputs["Base Color"])
-    return m
-
-
-def emission(name, color, strength):
-    m = bpy.data.materials.new(name)
-    m.use_nodes = True
-    nodes = m.node_tree.nodes
-    nodes.remove(nodes["Principled BSDF"])
-    e = nodes.new("ShaderNodeEmission")
-    e.inputs["Color"].default_value = (*color, 1.0)
-    e.inputs["Strength"].default_value = strength
-    m.node_tree.links.new(e.outputs["Emission"], nodes["Material Output"].inputs["Surface"])
+        m.node_tree.links.new(tex.outputs["Color"], nodes["Principled BSDF"].inputs["Base Color"])
     return m
 
 
@@ -149,7 +139,7 @@ def build_scene(out, textured):
         )
     bulb = bpy.context.object
     bulb.name = "Bulb"
-    bulb.data.materials.append(emission("Bulb", (1.0, 0.9, 0.7), 40.0))
+    bulb.data.materials.append(emission_material("Bulb", (1.0, 0.9, 0.7), 40.0))
 
     for name, dz in (("PortalBottom", -0.25), ("PortalTop", 0.25)):
         bpy.ops.mesh.primitive_circle_add(
@@ -174,54 +164,12 @@ def build_scene(out, textured):
     bpy.ops.object.camera_add(location=(0.6, -3.6, 2.0))
     cam = bpy.context.object
     cam.name = "Camera"
-    direction = (np.array([0.3, 0.0, 0.6]) - np.array(cam.location))
-    cam.rotation_euler = _look_rotation(direction)
+    cam.rotation_euler = look_rotation(cam.location, (0.3, 0.0, 0.6))
     cam.data.lens = 35
     scene.camera = cam
 
-    scene.world = bpy.data.worlds.new("Black")
-    scene.world.use_nodes = True
-    scene.world.node_tree.nodes["Background"].inputs["Strength"].default_value = 0.0
-    scene.render.resolution_x = WIDTH
-    scene.render.resolution_y = HEIGHT
-    scene.render.resolution_percentage = 100
-
-
-def _look_rotation(d):
-    from mathutils import Vector
-
-    return Vector(d).to_track_quat("-Z", "Y").to_euler()
-
-
-def export(path):
-    bpy.ops.export_scene.gltf(
-        filepath=path,
-        export_format="GLTF_SEPARATE",
-        export_extras=True,
-        export_lights=True,
-        export_cameras=True,
-        export_yup=True,
-        export_apply=True,
-    )
-
-
-def write_ply(path, tris, uvs):
-    """Triangles (n, 3, 3) with per-corner uvs (n, 3, 2) as a binary PLY, vertices unshared."""
-    n = len(tris)
-    verts = np.concatenate([np.reshape(tris, (-1, 3)), np.reshape(uvs, (-1, 2))], axis=1)
-    faces = np.zeros(n, dtype=[("k", "u1"), ("i", "<i4", 3)])
-    faces["k"] = 3
-    faces["i"] = np.arange(3 * n).reshape(n, 3)
-    header = (
-        "ply\nformat binary_little_endian 1.0\n"
-        f"element vertex {3 * n}\nproperty float x\nproperty float y\nproperty float z\n"
-        "property float u\nproperty float v\n"
-        f"element face {n}\nproperty list uchar int vertex_indices\nend_header\n"
-    )
-    with open(path, "wb") as f:
-        f.write(header.encode())
-        f.write(verts.astype("<f4").tobytes())
-        f.write(faces.tobytes())
+    black_world(scene)
+    set_resolution(scene, WIDTH, HEIGHT)
 
 
 def mitsuba_scene(out):
@@ -229,26 +177,13 @@ def mitsuba_scene(out):
     Lambertian `diffuse` colours or bitmaps, one-sided area emitters (a double-sided bulb is two,
     back to back), point lamps of P/(4π) W/sr, and the camera (Mitsuba looks down +Z with +X to
     the left: to_world = camera matrix x diag(-1, 1, -1, 1))."""
-    depsgraph = bpy.context.evaluated_depsgraph_get()
     shapes, points = [], []
     for obj in bpy.context.scene.objects:
         if obj.type == "LIGHT":
-            p = obj.data.energy / (4 * math.pi)
-            points.append(
-                {"position": list(obj.matrix_world.translation), "intensity": [p * c for c in obj.data.color]}
-            )
+            points.append(mitsuba_point(obj))
         if obj.type != "MESH" or "portal_target" in obj:
             continue
-        ev = obj.evaluated_get(depsgraph)
-        mesh = ev.to_mesh()
-        mesh.calc_loop_triangles()
-        m = np.array(obj.matrix_world)
-        uv_layer = mesh.uv_layers.active.data if mesh.uv_layers.active else None
-        tris, uvs = [], []
-        for t in mesh.loop_triangles:
-            tris.append([(m @ np.array([*mesh.vertices[v].co, 1.0]))[:3] for v in t.vertices])
-            uvs.append([tuple(uv_layer[l].uv) if uv_layer else (0.0, 0.0) for l in t.loops])
-        ev.to_mesh_clear()
+        tris, uvs = mesh_triangles(obj)
         ply = os.path.join(out, f"mitsuba-{obj.name}.ply")
         write_ply(ply, tris, uvs)
         nodes = obj.active_material.node_tree.nodes
@@ -256,15 +191,14 @@ def mitsuba_scene(out):
         if "Emission" in nodes:
             e = nodes["Emission"].inputs
             shape["radiance"] = [e["Strength"].default_value * c for c in e["Color"].default_value[:3]]
-            t = np.array(tris)
-            n = np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
+            n = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
             n /= np.linalg.norm(n, axis=1, keepdims=True)
             if np.all(n @ n[0] > 0.9999):
                 # A flat emitter is seen from both sides, but Mitsuba's area emitters are
                 # one-sided: a flipped copy 0.1 mm behind emits the other way, and rays from
                 # the back meet it first. (A closed bulb's inside is never seen.)
                 back = os.path.join(out, f"mitsuba-{obj.name}-back.ply")
-                write_ply(back, t - 1e-4 * n[0], uvs)
+                write_ply(back, tris - 1e-4 * n[0], uvs)
                 shapes.append(dict(shape, ply=back, flip=True))
         else:
             p = nodes["Principled BSDF"].inputs["Base Color"]
@@ -274,68 +208,8 @@ def mitsuba_scene(out):
                 shape["texture"] = bpy.path.abspath(tex.image.filepath_raw)
                 shape["filter"] = "bilinear" if tex.interpolation == "Linear" else "nearest"
         shapes.append(shape)
-    cam = bpy.context.scene.camera
-    to_world = np.array(cam.matrix_world) @ np.diag([-1.0, 1.0, -1.0, 1.0])
-    desc = {
-        "camera": {
-            "to_world": to_world.tolist(),
-            "fov_x_degrees": math.degrees(cam.data.angle_x),
-            "width": WIDTH,
-            "height": HEIGHT,
-        },
-        "shapes": shapes,
-        "points": points,
-    }
-    path = os.path.join(out, "mitsuba.json")
-    with open(path, "w") as f:
-        json.dump(desc, f, indent=1)
-    return path
-
-
-def principled_to_diffuse():
-    """The glTF file describes Lambertian surfaces; Cycles' Diffuse BSDF is one."""
-    for m in bpy.data.materials:
-        if not m.use_nodes or "Principled BSDF" not in m.node_tree.nodes:
-            continue
-        nodes, links = m.node_tree.nodes, m.node_tree.links
-        p = nodes["Principled BSDF"]
-        d = nodes.new("ShaderNodeBsdfDiffuse")
-        d.inputs["Color"].default_value = p.inputs["Base Color"].default_value
-        for link in list(p.inputs["Base Color"].links):
-            links.new(link.from_socket, d.inputs["Color"])
-        links.new(d.outputs["BSDF"], nodes["Material Output"].inputs["Surface"])
-        nodes.remove(p)
-
-
-def render_cycles(path, spp, seed):
-    s = bpy.context.scene
-    s.render.engine = "CYCLES"
-    s.cycles.device = "CPU"
-    s.cycles.samples = spp
-    s.cycles.use_adaptive_sampling = False
-    s.cycles.use_denoising = False
-    s.cycles.max_bounces = 0  # direct light only, as portalview's --max-depth 1
-    s.cycles.sample_clamp_direct = 0.0
-    s.cycles.sample_clamp_indirect = 0.0
-    s.cycles.pixel_filter_type = "BOX"
-    s.cycles.filter_width = 1.0
-    s.cycles.seed = seed
-    s.view_settings.view_transform = "Standard"
-    s.render.image_settings.file_format = "OPEN_EXR"
-    s.render.image_settings.color_depth = "32"
-    s.render.filepath = path
-    bpy.ops.render.render(write_still=True)
-
-
-def load_exr(path):
-    img = bpy.data.images.load(path)
-    px = np.array(img.pixels[:], dtype=np.float64).reshape(img.size[1], img.size[0], 4)
-    bpy.data.images.remove(img)
-    return px[::-1, :, :3]  # top row first
-
-
-def luminance(rgb):
-    return rgb @ np.array([0.2126, 0.7152, 0.0722])
+    desc = {"camera": mitsuba_camera(WIDTH, HEIGHT), "shapes": shapes, "points": points}
+    return write_json(os.path.join(out, "mitsuba.json"), desc)
 
 
 def compare(ref, other):
@@ -366,7 +240,7 @@ def main():
     os.makedirs(out, exist_ok=True)
     build_scene(out, not a.no_texture)
     gltf = os.path.join(out, "scene.gltf")
-    export(gltf)
+    export_gltf(gltf)
     mitsuba_json = mitsuba_scene(out) if a.mitsuba_python else None
     principled_to_diffuse()
     images = {"Cycles": [], "portalview": []}
@@ -388,9 +262,8 @@ def main():
         images["portalview"].append(load_exr(path))
         if mitsuba_json:
             path = os.path.join(out, f"mitsuba-{seed}.npy")
-            here = os.path.dirname(os.path.abspath(__file__))
             subprocess.run(
-                [a.mitsuba_python, os.path.join(here, "mitsuba_render.py"), mitsuba_json, path,
+                [a.mitsuba_python, os.path.join(HERE, "mitsuba_render.py"), mitsuba_json, path,
                  str(a.spp), str(seed)],
                 check=True,
             )
