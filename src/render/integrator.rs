@@ -124,6 +124,8 @@ pub struct Integrator<'a> {
     /// reaches by intersecting the polygons and tracing one occlusion ray, instead of a
     /// closest-hit ray through the whole scene.
     polygon_lights: bool,
+    /// The scene's size ([`crate::scene::Geometry::scale`]), for ray offsets: computed once.
+    scale: f32,
 }
 
 /// Up to this many polygon lights, the last bounce intersects them directly.
@@ -137,6 +139,7 @@ impl<'a> Integrator<'a> {
             lights: LightSampler::new(scene, settings.strategy, settings.alpha),
             sky: SkySampler::new(scene, settings.strategy, settings.alpha),
             settings,
+            scale: scene.geometry.scale(),
             // A cut-out light lets rays through its holes: it must be found by tracing.
             polygon_lights: lights.len() <= DIRECT_LIGHT_TEST_LIMIT
                 && lights.iter().all(|l| l.polygon.is_some())
@@ -320,7 +323,7 @@ impl<'a> Integrator<'a> {
             let mapped = surface
                 .zip(point.as_ref())
                 .and_then(|(s, q)| s.mapped_normal(q, ns));
-            let scale = geometry.scale();
+            let scale = self.scale;
             let Some(mut shading) = Self::shading(p, ns, ng, wo, material, mapped, scale) else {
                 break;
             };
@@ -417,7 +420,7 @@ impl<'a> Integrator<'a> {
             o,
             d,
             0.0,
-            t * (1.0 - 1e-4) - Self::shadow_gap(geometry.scale()),
+            t * (1.0 - 1e-4) - Self::shadow_gap(self.scale),
         ) {
             return Vec3::ZERO;
         }
@@ -753,7 +756,7 @@ impl<'a> Integrator<'a> {
             _ => sample.le,
         };
         // Stop short of the light so that its own triangles do not occlude it.
-        let tmax = dist * (1.0 - 1e-4) - Self::shadow_gap(self.scene.geometry.scale());
+        let tmax = dist * (1.0 - 1e-4) - Self::shadow_gap(self.scale);
         let light_pdf = light_prob * sample.pdf;
         Self::weighted(tracer, s, sample.wi, le, light_pdf, tmax, stats)
     }
