@@ -416,12 +416,7 @@ impl<'a> Integrator<'a> {
         }
         stats.shadow_rays += 1;
         // Stop short of the light so that its own triangles do not occlude it.
-        if tracer.occluded(
-            o,
-            d,
-            0.0,
-            t * (1.0 - 1e-4) - Self::shadow_gap(self.scale),
-        ) {
+        if tracer.occluded(o, d, 0.0, t * (1.0 - 1e-4) - Self::shadow_gap(self.scale)) {
             return Vec3::ZERO;
         }
         match prev {
