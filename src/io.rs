@@ -128,11 +128,9 @@ pub fn check_decoded_size(
 /// allocated.
 pub fn read_exr(path: &Path) -> Result<(u32, u32, Vec<Vec3>), String> {
     use exr::prelude::*;
-    let file_bytes = fs::metadata(path)
-        .map_err(|e| format!("{}: cannot read EXR: {e}", path.display()))?
-        .len();
-    let meta = exr::meta::MetaData::read_from_file(path, false)
-        .map_err(|e| format!("{}: cannot read EXR: {e}", path.display()))?;
+    let failed = |e: &dyn std::fmt::Display| format!("{}: cannot read EXR: {e}", path.display());
+    let file_bytes = fs::metadata(path).map_err(|e| failed(&e))?.len();
+    let meta = exr::meta::MetaData::read_from_file(path, false).map_err(|e| failed(&e))?;
     for header in &meta.headers {
         let size = header.layer_size;
         check_decoded_size(
@@ -141,7 +139,7 @@ pub fn read_exr(path: &Path) -> Result<(u32, u32, Vec<Vec3>), String> {
             file_bytes,
             MAX_PIXELS_PER_FILE_BYTE,
         )
-        .map_err(|e| format!("{}: cannot read EXR: {e}", path.display()))?;
+        .map_err(|e| failed(&e))?;
     }
     let image = read_first_rgba_layer_from_file(
         path,
@@ -157,7 +155,7 @@ pub fn read_exr(path: &Path) -> Result<(u32, u32, Vec<Vec3>), String> {
             }
         },
     )
-    .map_err(|e| format!("{}: cannot read EXR: {e}", path.display()))?;
+    .map_err(|e| failed(&e))?;
     let size = image.layer_data.size;
     let (_, pixels) = image.layer_data.channel_data.pixels;
     Ok((size.width() as u32, size.height() as u32, pixels))

@@ -1280,8 +1280,7 @@ mod tests {
                 let gap = 1e-6 * (1.0 + k as f32 * 0.4);
                 let u = rng.uniform2() * 1.6 - 0.8;
                 let origin = Vec3::new(gap, u.x, u.y);
-                let dir =
-                    (Vec3::new(-1.0, 0.3 * (k % 5) as f32 - 0.6, 0.2) + Vec3::ZERO).normalize();
+                let dir = Vec3::new(-1.0, 0.3 * (k % 5) as f32 - 0.6, 0.2).normalize();
                 let hit = bvh.closest_hit(origin, dir, 0.0, f32::INFINITY);
                 assert!(
                     hit.is_some_and(|h| h.triangle < 2),

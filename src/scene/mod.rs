@@ -447,11 +447,8 @@ impl Scene {
                 error,
             })?;
         let mut scene = scene.with_environment(environment)?;
-        if !warnings.is_empty() {
-            let mut desc = (*scene.desc).clone();
-            desc.warnings.extend(warnings);
-            scene.desc = Arc::new(desc);
-        }
+        // The new scene's description is its own: extended in place, not copied again.
+        Arc::make_mut(&mut scene.desc).warnings.extend(warnings);
         Ok(scene)
     }
 
