@@ -1,7 +1,11 @@
 //! Built-in scenes, made in code so that the viewer and the tests need no files:
 //! `lampshade` (the thesis's Figure 1), `fig8a`, `fig8b`, `fig8c` (its Figure 8), `window`,
-//! `windows2` (a room lit by the sky through window portals), and `desklamp` (an artist's scene
-//! as Blender exports it: textures, a normal map, a point lamp and a bulb mesh behind portals).
+//! `windows2` (a room lit by the sky through window portals), `desklamp` (an artist's scene
+//! as Blender exports it: textures, a normal map, a point lamp and a bulb mesh behind portals),
+//! and `livingroom` (many lights in one room: eight lamps, six ceiling cans and a window, each
+//! behind its portals).
+
+mod livingroom;
 
 use glam::{Vec2, Vec3};
 use std::collections::HashMap;
@@ -18,7 +22,7 @@ use crate::asset::texture::{Image, Sampler, TextureRef};
 use crate::camera::Camera;
 
 /// Names of the built-in scenes.
-pub const NAMES: [&str; 7] = [
+pub const NAMES: [&str; 8] = [
     "lampshade",
     "fig8a",
     "fig8b",
@@ -26,6 +30,7 @@ pub const NAMES: [&str; 7] = [
     "window",
     "windows2",
     "desklamp",
+    "livingroom",
 ];
 
 /// The built-in scene `name`, if there is one.
@@ -38,6 +43,7 @@ pub fn desc(name: &str) -> Option<SceneDesc> {
         "window" => Some(room_with_windows("window", false)),
         "windows2" => Some(room_with_windows("windows2", true)),
         "desklamp" => Some(desklamp()),
+        "livingroom" => Some(livingroom::livingroom()),
         _ => None,
     }
 }
@@ -68,21 +74,15 @@ impl Builder {
 
     /// An axis-aligned box with outward faces.
     fn cuboid(&mut self, node: &str, material: usize, lo: Vec3, hi: Vec3) {
-        let c = |x: usize, y: usize, z: usize| {
-            Vec3::new(
-                if x == 0 { lo.x } else { hi.x },
-                if y == 0 { lo.y } else { hi.y },
-                if z == 0 { lo.z } else { hi.z },
-            )
-        };
-        let faces = vec![
-            vec![c(0, 0, 0), c(0, 0, 1), c(0, 1, 1), c(0, 1, 0)], // -x
-            vec![c(1, 0, 0), c(1, 1, 0), c(1, 1, 1), c(1, 0, 1)], // +x
-            vec![c(0, 0, 0), c(1, 0, 0), c(1, 0, 1), c(0, 0, 1)], // -y
-            vec![c(0, 1, 0), c(0, 1, 1), c(1, 1, 1), c(1, 1, 0)], // +y
-            vec![c(0, 0, 0), c(0, 1, 0), c(1, 1, 0), c(1, 0, 0)], // -z
-            vec![c(0, 0, 1), c(1, 0, 1), c(1, 1, 1), c(0, 1, 1)], // +z
-        ];
+        self.flat(node, material, &cuboid_faces(lo, hi));
+    }
+
+    /// Axis-aligned boxes `(lo, hi)` with outward faces, as one node.
+    fn cuboids(&mut self, node: &str, material: usize, boxes: &[(Vec3, Vec3)]) {
+        let faces: Vec<Vec<Vec3>> = boxes
+            .iter()
+            .flat_map(|&(lo, hi)| cuboid_faces(lo, hi))
+            .collect();
         self.flat(node, material, &faces);
     }
 
@@ -131,6 +131,25 @@ impl Builder {
             aspect: 4.0 / 3.0,
         });
     }
+}
+
+/// The six faces of the axis-aligned box from `lo` to `hi`, each facing out.
+fn cuboid_faces(lo: Vec3, hi: Vec3) -> Vec<Vec<Vec3>> {
+    let c = |x: usize, y: usize, z: usize| {
+        Vec3::new(
+            if x == 0 { lo.x } else { hi.x },
+            if y == 0 { lo.y } else { hi.y },
+            if z == 0 { lo.z } else { hi.z },
+        )
+    };
+    vec![
+        vec![c(0, 0, 0), c(0, 0, 1), c(0, 1, 1), c(0, 1, 0)], // -x
+        vec![c(1, 0, 0), c(1, 1, 0), c(1, 1, 1), c(1, 0, 1)], // +x
+        vec![c(0, 0, 0), c(1, 0, 0), c(1, 0, 1), c(0, 0, 1)], // -y
+        vec![c(0, 1, 0), c(0, 1, 1), c(1, 1, 1), c(1, 1, 0)], // +y
+        vec![c(0, 0, 0), c(0, 1, 0), c(1, 1, 0), c(1, 0, 0)], // -z
+        vec![c(0, 0, 1), c(1, 0, 1), c(1, 1, 1), c(0, 1, 1)], // +z
+    ]
 }
 
 /// A horizontal rectangle at height `y`, centred at (cx, cz), facing up or down.
