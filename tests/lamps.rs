@@ -17,9 +17,9 @@ use std::path::PathBuf;
 
 use glam::Vec3;
 use portalview::asset::desc::{LampDesc, LampKind, MaterialDesc, SceneDesc};
-use portalview::light::Strategy;
-use portalview::light::estimator::LightSampler;
+use portalview::light::estimator::{LightSampler, PickedLight};
 use portalview::light::punctual::LUMENS_PER_WATT;
+use portalview::light::{Selection, Strategy};
 use portalview::render::integrator::{Integrator, RenderSettings};
 use portalview::render::stats::Stats;
 use portalview::sampling::{Rng, Sampler};
@@ -359,7 +359,8 @@ fn lamps_and_area_lights_are_picked_by_power_and_strategies_agree() {
     ));
     let without_lamp = Scene::from_desc(desc.clone(), "mixed").unwrap();
     let sampler = LightSampler::new(&without_lamp, Strategy::Antishadow, None);
-    assert_eq!(sampler.light_probability(0), 1.0);
+    let (x, n) = (Vec3::new(0.3, 0.0, 0.1), Vec3::Y);
+    assert_eq!(sampler.light_probability(0, x, n), 1.0);
 
     let (i, p) = (1.5, Vec3::new(1.0, 1.0, 0.5));
     desc.lamps
@@ -367,10 +368,12 @@ fn lamps_and_area_lights_are_picked_by_power_and_strategies_agree() {
     let scene = lambertian(Scene::from_desc(desc, "mixed").unwrap(), 0, 1.0);
     let area_power = PI * le * 0.8 * 0.8;
     let lamp_power = 4.0 * PI * i;
-    let sampler = LightSampler::new(&scene, Strategy::Antishadow, None);
+    let sampler =
+        LightSampler::with_selection(&scene, Strategy::Antishadow, None, Selection::Power);
     let expected_p = lamp_power / (lamp_power + area_power);
-    assert!((sampler.lamp_probability(0) - expected_p).abs() < 1e-5);
-    assert!((sampler.light_probability(0) - (1.0 - expected_p)).abs() < 1e-5);
+    let lamp_p = sampler.probability(PickedLight::Lamp(0), x, n);
+    assert!((lamp_p - expected_p).abs() < 1e-5);
+    assert!((sampler.light_probability(0, x, n) - (1.0 - expected_p)).abs() < 1e-5);
 
     for x in [Vec3::new(0.1, 0.0, 0.2), Vec3::new(1.2, 0.0, -0.6)] {
         let area = lambert_irradiance(x, Vec3::Y, &light, le);

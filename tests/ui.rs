@@ -1,14 +1,15 @@
-//! The real viewer driven by egui_kittest with software Vulkan (Mesa llvmpipe): strategy
-//! switching reaches the worker, overlays change pixels, portal edits restart accumulation and
+//! The real viewer driven by egui_kittest with software Vulkan (Mesa llvmpipe): strategy,
+//! sampler, mixture and light selection switching reach the worker, overlays change pixels (the
+//! light selection's with its legend and inspector line), portal edits restart accumulation and
 //! change the overlay, saving round-trips, and snapshots of the main panels.
 
 use egui_kittest::Harness;
 use egui_kittest::kittest::Queryable;
 use glam::Vec3;
 use portalview::app::PortalViewApp;
-use portalview::app::overlay::OverlayKind;
+use portalview::app::overlay::{OverlayKind, spread_colour};
 use portalview::light::antishadow::Region;
-use portalview::light::{Mixture, Strategy};
+use portalview::light::{Mixture, Selection, Strategy};
 use portalview::sampling::SamplerKind;
 mod ui_common;
 
@@ -90,6 +91,114 @@ fn switching_the_mixture_restarts_the_render_with_it() {
     assert!(
         ratios[0] > 1.2 * ratios[1],
         "shadow rays per path {ratios:?}"
+    );
+}
+
+/// The light selection buttons restart the render with the chosen selection, and back;
+/// `view --light-selection` sets the one it starts with.
+#[test]
+fn switching_the_light_selection_restarts_the_render_with_it() {
+    use clap::Parser;
+    use portalview::cli::{Cli, Command};
+    let cli = Cli::try_parse_from(["portalview", "view", "--light-selection", "power"]).unwrap();
+    let Some(Command::View(view)) = cli.command else {
+        panic!("not a view command");
+    };
+    let options: portalview::app::ViewOptions = view.into();
+    assert_eq!(options.selection, Some(Selection::Power));
+    let _serial = serial();
+    let mut h = harness("desklamp");
+    step_until(&mut h, "first frame", has_full_frame);
+    assert_eq!(h.state().render_settings().selection, Selection::Tree);
+    // The tree is the default: power first, then back.
+    for (label, selection) in [("power", Selection::Power), ("tree", Selection::Tree)] {
+        click_until_restarted(&mut h, label);
+        assert_eq!(h.state().settings.selection, selection);
+        assert_eq!(h.state().render_settings().selection, selection);
+    }
+}
+
+/// The *light selection* overlay colours each pixel by how many lights carry most of the
+/// tree's picks there, with its legend, and the inspector gives the count under the mouse.
+/// Snapshot: the overlay opaque over an image darkened to black (exposure −8), paused, the
+/// status bar (spp and time) blanked, so that what is compared does not depend on timing.
+#[test]
+fn the_light_selection_overlay_draws_with_its_legend() {
+    let _serial = serial();
+    let mut h = harness_with("desklamp", |app| {
+        app.settings.overlay = OverlayKind::LightSelection;
+        app.settings.overlay_opacity = 1.0;
+        app.settings.exposure = -8.0;
+    });
+    step_until(&mut h, "first frame", has_full_frame);
+    h.state_mut().set_paused(true);
+    h.run_steps(3);
+    let primary = h.state().frame().unwrap().primary.clone().unwrap();
+    let mut counts = std::collections::BTreeMap::new();
+    for &n in primary.spread.iter().flatten() {
+        *counts.entry(n).or_insert(0usize) += 1;
+    }
+    // Most pixels see a surface some light reaches; under the shade the lamp in it takes
+    // nearly every pick, elsewhere the ceiling's lamp shares them.
+    assert!(
+        primary.spread.iter().flatten().count() > primary.spread.len() / 2
+            && counts.contains_key(&1)
+            && counts.keys().any(|&n| n >= 2),
+        "pixels per count of lights {counts:?}"
+    );
+    // The legend names the buckets and says what is counted, and for which tree.
+    assert!(h.query_by_label("1 light").is_some());
+    assert!(h.query_by_label("16 or more lights").is_some());
+    assert!(h.query_by_label("lights carrying 90% of picks").is_some());
+    assert!(
+        h.query_by_label("(the light tree, as under antishadow)")
+            .is_some()
+    );
+    // The overlay is opaque: where a pixel's hit projects on screen, the buckets' colour of
+    // its count shows (but for a few pixels under outlines and the gizmo).
+    let image = h.render().unwrap();
+    let (w, ht) = (primary.width as usize, primary.height as usize);
+    let (mut seen, mut matched, mut inspected) = (0, 0, None);
+    for (px, py) in (1..10).flat_map(|i| (1..10).map(move |j| (i * w / 10, j * ht / 10))) {
+        let i = py * w + px;
+        let (Some(lights), Some(hit)) = (primary.spread[i], primary.points[i]) else {
+            continue;
+        };
+        let Some(pos) = h.state().image_point(hit) else {
+            continue;
+        };
+        seen += 1;
+        let pixel = image.get_pixel(pos.x as u32, pos.y as u32).0;
+        let colour = spread_colour(lights);
+        if pixel[..3] == [colour.r(), colour.g(), colour.b()] {
+            matched += 1;
+            inspected = Some((pos, lights, hit));
+        }
+    }
+    assert!(seen > 40 && matched * 10 >= seen * 9, "{matched} of {seen}");
+    let mut image = image;
+    let status = h.get_by_label_contains(" spp").rect();
+    for y in (status.min.y as u32).saturating_sub(3)..image.height() {
+        for x in 0..image.width() {
+            image.put_pixel(x, y, image::Rgba([0, 0, 0, 255]));
+        }
+    }
+    egui_kittest::image_snapshot(&image, "light_selection_overlay");
+    // Its legend is as wide as the regions': switching overlays leaves the image where it
+    // is (a resized image restarts the render).
+    let (pos, lights, hit) = inspected.unwrap();
+    for kind in [OverlayKind::Regions, OverlayKind::LightSelection] {
+        h.state_mut().settings.overlay = kind;
+        h.run_steps(3);
+        assert_eq!(h.state().image_point(hit), Some(pos), "{kind:?}");
+    }
+    // The inspector gives the count of the pixel under the mouse.
+    h.hover_at(pos);
+    h.run_steps(2);
+    let line = format!("lights carrying 90% of picks: {lights}");
+    assert!(
+        h.query_by_label_contains(&line).is_some(),
+        "no inspector line {line:?}"
     );
 }
 

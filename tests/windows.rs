@@ -486,6 +486,7 @@ fn render_image_with(
             // Block z-scores rest on per-pixel sample variance: independent numbers.
             sampler: portalview::sampling::SamplerKind::Independent,
             mixture,
+            selection: Default::default(),
         },
     );
     let (film, stats) = render(&integrator, 48, 36, spp);

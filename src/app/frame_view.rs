@@ -1,5 +1,5 @@
 //! The newest frame from the render worker and what is drawn from it: the tone-mapped (or
-//! false-colour) texture, the overlay texture, and the legend's region shares.
+//! false-colour) texture, the overlay texture, and the legends' pixel shares.
 
 use egui::{Color32, ColorImage, TextureHandle, TextureOptions};
 
@@ -22,6 +22,8 @@ pub(super) struct FrameView {
     overlay_key: Option<OverlayKey>,
     /// The legend's pixel shares per region, and what they are for.
     legend: Option<(LegendKey, [f32; 5])>,
+    /// The light selection legend's pixel shares per bucket, and the frame generation.
+    spread_legend: Option<(u64, [f32; overlay::SPREAD_BUCKETS.len()])>,
 }
 
 impl FrameView {
@@ -95,6 +97,20 @@ impl FrameView {
             _ => {
                 let shares = f.primary.as_ref()?.shares(portal);
                 self.legend = Some((key, shares));
+                Some(shares)
+            }
+        }
+    }
+
+    /// The share of the frame's pixels in each bucket of the light selection's spread,
+    /// computed once per frame generation.
+    pub fn spread_shares(&mut self) -> Option<[f32; overlay::SPREAD_BUCKETS.len()]> {
+        let f = self.frame.as_ref()?;
+        match self.spread_legend {
+            Some((generation, shares)) if generation == f.generation => Some(shares),
+            _ => {
+                let shares = overlay::spread_shares(f.primary.as_ref()?);
+                self.spread_legend = Some((f.generation, shares));
                 Some(shares)
             }
         }

@@ -30,7 +30,7 @@ use std::time::{Duration, Instant};
 use crate::asset::desc::PortalDesc;
 use crate::asset::environment::{EnvironmentDesc, EnvironmentOverrides};
 use crate::camera::Camera;
-use crate::light::{Mixture, Strategy};
+use crate::light::{Mixture, Selection, Strategy};
 use crate::render::integrator::RenderSettings;
 use crate::render::worker::{Frame, RenderHandle, RenderRequest};
 use crate::sampling::SamplerKind;
@@ -214,6 +214,7 @@ impl PortalViewApp {
         settings.max_depth = options.max_depth.unwrap_or(settings.max_depth).max(1);
         settings.sampler = options.sampler.unwrap_or(settings.sampler);
         settings.mixture = options.mixture.unwrap_or(settings.mixture);
+        settings.selection = options.selection.unwrap_or(settings.selection);
         settings.show_volumes |= options.volumes;
         let repaint = ctx.clone();
         let renderer = RenderHandle::spawn(0, Box::new(move || repaint.request_repaint()))?;
@@ -330,6 +331,7 @@ impl PortalViewApp {
             seed: 0,
             sampler: self.settings.sampler,
             mixture: self.settings.mixture,
+            selection: self.settings.selection,
         }
     }
 
@@ -732,7 +734,7 @@ impl PortalViewApp {
                 &settings.compare,
                 settings.max_depth,
                 settings.alpha,
-                (settings.sampler, settings.mixture),
+                (settings.sampler, settings.mixture, settings.selection),
             );
             self.compare.show(
                 ui,
@@ -776,6 +778,7 @@ pub struct ViewOptions {
     pub max_depth: Option<u32>,
     pub sampler: Option<SamplerKind>,
     pub mixture: Option<Mixture>,
+    pub selection: Option<Selection>,
     /// Replaces the start-up scene's environment (the command line's `--environment…`).
     pub environment: EnvironmentOverrides,
 }

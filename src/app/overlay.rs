@@ -1,5 +1,5 @@
-//! Colours of the antishadow regions and techniques, and the overlay image built from the
-//! worker's per-pixel classification.
+//! Colours of the antishadow regions and techniques and of the light selection's spread, and
+//! the overlay image built from the worker's per-pixel classification.
 
 use egui::{Color32, ColorImage};
 use serde::{Deserialize, Serialize};
@@ -7,7 +7,7 @@ use serde::{Deserialize, Serialize};
 use crate::light::antishadow::Region;
 use crate::light::sky::SkyTechnique;
 use crate::light::{Strategy, Technique};
-use crate::render::primary::PrimaryBuffer;
+use crate::render::primary::{PrimaryBuffer, SPREAD_SHARE};
 
 /// Which overlay is drawn over the render.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
@@ -18,13 +18,16 @@ pub enum OverlayKind {
     Regions,
     /// The technique the antishadow mode uses at each pixel's primary hit.
     Techniques,
+    /// How many lights carry most of the light tree's picks at each pixel's primary hit.
+    LightSelection,
 }
 
 impl OverlayKind {
-    pub const ALL: [OverlayKind; 3] = [
+    pub const ALL: [OverlayKind; 4] = [
         OverlayKind::None,
         OverlayKind::Regions,
         OverlayKind::Techniques,
+        OverlayKind::LightSelection,
     ];
 
     pub fn name(self) -> &'static str {
@@ -32,8 +35,74 @@ impl OverlayKind {
             OverlayKind::None => "none",
             OverlayKind::Regions => "regions",
             OverlayKind::Techniques => "strategy used",
+            OverlayKind::LightSelection => "light selection",
         }
     }
+}
+
+/// The *light selection* overlay's buckets of [`PrimaryBuffer::spread`], as (fewest, most)
+/// lights: doubling widths, since what matters is one light against a few against many.
+pub(crate) const SPREAD_BUCKETS: [(u32, u32); 6] =
+    [(1, 1), (2, 2), (3, 4), (5, 8), (9, 15), (16, u32::MAX)];
+
+/// The buckets' colours, dark blue to yellow, brighter with more lights (readable without
+/// telling hues apart).
+const SPREAD_COLOURS: [Color32; 6] = [
+    Color32::from_rgb(25, 35, 120),
+    Color32::from_rgb(35, 85, 175),
+    Color32::from_rgb(30, 140, 160),
+    Color32::from_rgb(60, 180, 110),
+    Color32::from_rgb(170, 210, 50),
+    Color32::from_rgb(250, 230, 40),
+];
+
+/// The bucket of `lights` lights carrying the share (0 counts as 1: it never occurs).
+pub(crate) fn spread_bucket(lights: u32) -> usize {
+    SPREAD_BUCKETS
+        .iter()
+        .position(|&(_, most)| lights <= most)
+        .unwrap_or(SPREAD_BUCKETS.len() - 1)
+}
+
+/// The colour of a pixel whose hit has `lights` lights carrying the share.
+pub fn spread_colour(lights: u32) -> Color32 {
+    SPREAD_COLOURS[spread_bucket(lights)]
+}
+
+/// The legend's colour and name of bucket `k`.
+pub(crate) fn spread_legend(k: usize) -> (Color32, String) {
+    let (fewest, most) = SPREAD_BUCKETS[k];
+    let name = match (fewest, most) {
+        (1, 1) => "1 light".to_owned(),
+        (f, u32::MAX) => format!("{f} or more lights"),
+        (f, m) if f == m => format!("{f} lights"),
+        (f, m) => format!("{f}–{m} lights"),
+    };
+    (SPREAD_COLOURS[k], name)
+}
+
+/// The share of the pixels with a spread in each bucket, among those that have one.
+pub(crate) fn spread_shares(primary: &PrimaryBuffer) -> [f32; SPREAD_BUCKETS.len()] {
+    let mut counts = [0usize; SPREAD_BUCKETS.len()];
+    for &lights in primary.spread.iter().flatten() {
+        counts[spread_bucket(lights)] += 1;
+    }
+    let total = counts.iter().sum::<usize>().max(1);
+    counts.map(|c| c as f32 / total as f32)
+}
+
+/// What the *light selection* overlay shows, for its legend and hover text. The worker
+/// classifies with the antishadow strategy's default sampler, so the overlay shows its tree
+/// whatever the render's strategy and light selection.
+pub(crate) fn spread_caption() -> String {
+    format!(
+        "How many lights carry {:.0}% of the light tree's picks at each pixel's hit: 1 where \
+         one light takes nearly every sample, more where the picks spread. It shows the tree \
+         as the antishadow strategy builds it (portals bounding the lights behind them), \
+         whatever the strategy and light selection above. Pixels that see nothing, or that no \
+         light reaches, stay clear.",
+        100.0 * SPREAD_SHARE
+    )
 }
 
 /// A region's colour; a technique shares the colour of the region that uses it.
@@ -113,6 +182,9 @@ pub(crate) fn overlay_image(
                     .copied()
                     .flatten()
                     .map(|_| technique_colour(primary.technique[i], primary.region(i, None))),
+                OverlayKind::LightSelection => {
+                    primary.spread.get(i).copied().flatten().map(spread_colour)
+                }
             };
             match colour {
                 Some(c) => Color32::from_rgba_unmultiplied(c.r(), c.g(), c.b(), alpha),
@@ -179,5 +251,36 @@ mod tests {
             legend_line(Region::Antiantumbra, false, false),
             "antiantumbra: portal"
         );
+    }
+
+    #[test]
+    fn spread_buckets_cover_every_count_once() {
+        let names: Vec<String> = (0..SPREAD_BUCKETS.len())
+            .map(|k| spread_legend(k).1)
+            .collect();
+        assert_eq!(
+            names,
+            [
+                "1 light",
+                "2 lights",
+                "3–4 lights",
+                "5–8 lights",
+                "9–15 lights",
+                "16 or more lights"
+            ]
+        );
+        // Every count falls in the bucket whose bounds hold it, and the next count in the
+        // same bucket or the next one: the buckets tile the counts.
+        for lights in 1..100u32 {
+            let k = spread_bucket(lights);
+            let (fewest, most) = SPREAD_BUCKETS[k];
+            assert!((fewest..=most).contains(&lights), "{lights} in {k}");
+            assert!(spread_bucket(lights + 1) - k <= 1);
+        }
+        assert_eq!(spread_colour(1), SPREAD_COLOURS[0]);
+        assert_eq!(spread_colour(1000), SPREAD_COLOURS[5]);
+        // Brighter with more lights.
+        let luma = |c: Color32| 0.2 * c.r() as f32 + 0.7 * c.g() as f32 + 0.1 * c.b() as f32;
+        assert!(SPREAD_COLOURS.windows(2).all(|w| luma(w[0]) < luma(w[1])));
     }
 }

@@ -2,7 +2,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::light::{Mixture, Strategy};
+use crate::light::{Mixture, Selection, Strategy};
 use crate::sampling::SamplerKind;
 
 use super::compare_view::CompareViewSettings;
@@ -20,6 +20,9 @@ pub struct ViewerSettings {
     pub sampler: SamplerKind,
     /// How a shading point draws from its light mixture.
     pub mixture: Mixture,
+    /// How a shading point picks the light it samples (settings saved before it existed
+    /// load with the default, as the container's `serde(default)` fills missing fields).
+    pub selection: Selection,
     /// Exposure in stops.
     pub exposure: f32,
     /// Show log-luminance in false colour instead of the tone-mapped image.
@@ -52,6 +55,7 @@ impl Default for ViewerSettings {
             max_depth: 2,
             sampler: SamplerKind::default(),
             mixture: Mixture::default(),
+            selection: Selection::default(),
             exposure: 0.0,
             false_colour: false,
             resolution_scale: 0.5,
@@ -89,4 +93,25 @@ pub enum ViewMode {
     #[default]
     Render,
     Compare,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Settings saved before light selection existed still load, with the default selection
+    /// and everything they do hold kept.
+    #[test]
+    fn settings_without_a_selection_load() {
+        let mut saved = serde_json::to_value(ViewerSettings {
+            mixture: Mixture::EachShare,
+            selection: Selection::Power,
+            ..ViewerSettings::default()
+        })
+        .unwrap();
+        saved.as_object_mut().unwrap().remove("selection");
+        let loaded: ViewerSettings = serde_json::from_value(saved).unwrap();
+        assert_eq!(loaded.selection, Selection::Tree);
+        assert_eq!(loaded.mixture, Mixture::EachShare);
+    }
 }

@@ -6,7 +6,8 @@ use egui::Color32;
 use super::overlay::{self, OverlayKind};
 use super::{Command, PortalViewApp, ViewMode, ViewerSettings};
 use crate::light::antishadow::Region;
-use crate::light::{Mixture, Strategy, Technique};
+use crate::light::{Mixture, Selection, Strategy, Technique};
+use crate::render::primary::SPREAD_SHARE;
 use crate::sampling::SamplerKind;
 
 impl PortalViewApp {
@@ -49,6 +50,7 @@ impl PortalViewApp {
             max_depth,
             sampler,
             mixture,
+            selection,
             exposure,
             false_colour,
             resolution_scale,
@@ -101,6 +103,19 @@ impl PortalViewApp {
             );
             for m in Mixture::ALL {
                 if ui.selectable_value(mixture, m, m.name()).changed() {
+                    commands.push(Command::Restart);
+                }
+            }
+        });
+        ui.horizontal(|ui| {
+            ui.label("light selection").on_hover_text(
+                "How a shading point picks the light it samples. tree: by a tree of the \
+                 lights' bounds (position, direction, power) in which a light behind portals is \
+                 bounded by its portals, so a point far from a lamp or behind its shade rarely \
+                 picks it. power: by power alone, the same everywhere.",
+            );
+            for s in Selection::ALL {
+                if ui.selectable_value(selection, s, s.name()).changed() {
                     commands.push(Command::Restart);
                 }
             }
@@ -173,7 +188,6 @@ impl PortalViewApp {
         // The legend: colours and the share of pixels in each region, and what antishadow
         // samples there for the kinds of portal it describes (overlay portals list area-light
         // portals first, then windows).
-        let shares = self.view.shares(self.overlay_portal);
         let (areas, windows) = self.current.as_ref().map_or((true, false), |c| {
             let n = c.rendered.portals.len();
             match self.overlay_portal {
@@ -181,8 +195,27 @@ impl PortalViewApp {
                 None => (n > 0, !c.rendered.windows.is_empty()),
             }
         });
+        let lines = Region::ALL.map(|region| overlay::legend_line(region, areas, windows));
+        if settings.overlay == OverlayKind::LightSelection {
+            // As wide as the regions' legend: switching overlays must not resize the panel,
+            // which would resize the image and restart the render.
+            let font = egui::TextStyle::Body.resolve(ui.style());
+            let width = ui.ctx().fonts_mut(|f| {
+                lines
+                    .iter()
+                    .map(|l| {
+                        f.layout_no_wrap(l.clone(), font.clone(), Color32::WHITE)
+                            .size()
+                            .x
+                    })
+                    .fold(0.0, f32::max)
+            });
+            self.spread_legend(ui, width);
+            return;
+        }
+        let shares = self.view.shares(self.overlay_portal);
         egui::Grid::new("legend").num_columns(3).show(ui, |ui| {
-            for (k, region) in Region::ALL.into_iter().enumerate() {
+            for (k, (region, line)) in Region::ALL.into_iter().zip(lines).enumerate() {
                 let (rect, _) =
                     ui.allocate_exact_size(egui::vec2(14.0, 14.0), egui::Sense::hover());
                 ui.painter()
@@ -193,7 +226,40 @@ impl PortalViewApp {
                 // the panel, which would resize the image and restart it.
                 let share = shares.map_or("   –  ".into(), |s| format!("{:>5.1}%", 100.0 * s[k]));
                 ui.label(egui::RichText::new(share).monospace());
-                ui.label(overlay::legend_line(region, areas, windows));
+                ui.label(line);
+                ui.end_row();
+            }
+        });
+    }
+
+    /// The *light selection* overlay's legend: what it counts, and each bucket's colour and
+    /// share of the pixels; its names' column at least `name_width` wide.
+    fn spread_legend(&mut self, ui: &mut egui::Ui, name_width: f32) {
+        // Short lines, the full story in the hover text: a wrapped paragraph would widen the
+        // panel to its full width.
+        ui.label(format!(
+            "lights carrying {:.0}% of picks",
+            100.0 * SPREAD_SHARE
+        ))
+        .on_hover_text(overlay::spread_caption());
+        ui.weak("(the light tree, as under antishadow)")
+            .on_hover_text(overlay::spread_caption());
+        let shares = self.view.spread_shares();
+        // The regions' grid's id: its remembered column widths spare the new grid the
+        // narrower first frame that would shrink the panel.
+        egui::Grid::new("legend").num_columns(3).show(ui, |ui| {
+            for k in 0..overlay::SPREAD_BUCKETS.len() {
+                let (colour, name) = overlay::spread_legend(k);
+                let (rect, _) =
+                    ui.allocate_exact_size(egui::vec2(14.0, 14.0), egui::Sense::hover());
+                ui.painter().rect_filled(rect, 2.0, colour);
+                // Fixed width, as the regions' shares.
+                let share = shares.map_or("   –  ".into(), |s| format!("{:>5.1}%", 100.0 * s[k]));
+                ui.label(egui::RichText::new(share).monospace());
+                ui.scope(|ui| {
+                    ui.set_min_width(name_width);
+                    ui.label(name);
+                });
                 ui.end_row();
             }
         });

@@ -11,8 +11,8 @@ use super::gizmo::PortalFrame;
 use super::overlay::{self, OverlayKind, region_colour};
 use super::{Command, Current, PortalViewApp};
 use crate::camera::Camera;
-use crate::light::antishadow::Region;
 use crate::light::area::luminance;
+use crate::render::primary::SPREAD_SHARE;
 
 /// Triangles of non-polygon lights outlined in the viewport, at most (the rest is not drawn).
 const MAX_LIGHT_TRIANGLES_DRAWN: usize = 4096;
@@ -306,7 +306,7 @@ impl PortalViewApp {
             *overlay_portal = current.rendered_index(i);
         }
         if let Some(pos) = response.hover_pos() {
-            inspector(ui, view, current, rect, pos);
+            inspector(ui, view, current, settings.overlay, (rect, pos));
         }
     }
 }
@@ -336,8 +336,16 @@ fn camera_input(ui: &Ui, response: &egui::Response, rect: Rect, camera: &mut Cam
     moved
 }
 
-/// What the hovered pixel shows: radiance, its region for each portal, the technique.
-fn inspector(ui: &Ui, view: &FrameView, current: &Current, rect: Rect, pos: Pos2) {
+/// What the hovered pixel shows: radiance, its region for each portal, the technique, the
+/// light selection's spread; its swatch has the pixel's colour in the overlay shown (the
+/// region's without one).
+fn inspector(
+    ui: &Ui,
+    view: &FrameView,
+    current: &Current,
+    overlay: OverlayKind,
+    (rect, pos): (Rect, Pos2),
+) {
     let Some(frame) = &view.frame else {
         return;
     };
@@ -372,6 +380,12 @@ fn inspector(ui: &Ui, view: &FrameView, current: &Current, rect: Rect, pos: Pos2
                     "\nantishadow uses: {}",
                     overlay::technique_name(primary.technique[i], primary.region(i, None))
                 );
+                if let Some(lights) = primary.spread.get(i).copied().flatten() {
+                    text += &format!(
+                        "\nlights carrying {:.0}% of picks: {lights}",
+                        100.0 * SPREAD_SHARE
+                    );
+                }
             }
             None => text += "\nno hit",
         }
@@ -379,10 +393,24 @@ fn inspector(ui: &Ui, view: &FrameView, current: &Current, rect: Rect, pos: Pos2
     let colour = frame
         .primary
         .as_ref()
-        .and_then(|p| p.combined.get(y * p.width as usize + x).copied().flatten())
-        .map_or(Color32::GRAY, |r: Region| region_colour(r));
+        .and_then(|p| {
+            let i = y * p.width as usize + x;
+            match overlay {
+                OverlayKind::LightSelection => p
+                    .spread
+                    .get(i)
+                    .copied()
+                    .flatten()
+                    .map(overlay::spread_colour),
+                _ => p.combined.get(i).copied().flatten().map(region_colour),
+            }
+        })
+        .unwrap_or(Color32::GRAY);
+    // Anchored by its bottom left, so that a scene with many portals (a line each) grows it
+    // upwards, over the image, rather than below it.
     egui::Area::new(egui::Id::unique("inspector"))
-        .fixed_pos(rect.left_bottom() + egui::vec2(8.0, -110.0))
+        .pivot(egui::Align2::LEFT_BOTTOM)
+        .fixed_pos(rect.left_bottom() + egui::vec2(8.0, -8.0))
         .interactable(false)
         .show(ui.ctx(), |ui| {
             egui::Frame::popup(ui.style()).show(ui, |ui| {

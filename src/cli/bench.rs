@@ -17,7 +17,7 @@ use crate::compare::{
     render_reference, time_to_error,
 };
 use crate::isa::Isa;
-use crate::light::Strategy;
+use crate::light::{Selection, Strategy};
 use crate::render::integrator::{Integrator, RenderSettings};
 use crate::render::record::{RecordedRay, record_pass};
 use crate::render::stats::Stats;
@@ -283,10 +283,12 @@ fn rays_from_files(args: &BenchArgs) -> Result<()> {
 /// Rays per task of `--only rays`.
 const RAY_FILE_TILE: usize = 4096;
 
-/// The cost of one sample on one thread, per built-in scene and strategy: every tile of a
-/// `size²` image (pass 0) is rendered `repeats` times in this thread, and the fastest time of
-/// each tile counts. On a machine shared with other work, a tile's fastest render (about a
-/// millisecond) is rarely disturbed, where a whole render's rate moves by tens of percent.
+/// The cost of one sample on one thread, per built-in scene and strategy, with lights picked by
+/// power and by the tree: every tile of a `size²` image (pass 0) is rendered `repeats` times in
+/// this thread by each selection in turn (each first in every other round), and the fastest
+/// time of each tile counts. On a machine shared with other work, a tile's fastest render
+/// (about a millisecond) is rarely disturbed, where a whole render's rate moves by tens of
+/// percent; alternating the two selections tile by tile puts them side by side.
 fn tiles(size: u32, repeats: u32) -> Result<()> {
     anyhow::ensure!(
         repeats > 0 && size > 0,
@@ -296,39 +298,54 @@ fn tiles(size: u32, repeats: u32) -> Result<()> {
         "Cost of a sample on one thread, {size}x{size} px, each tile's fastest of {repeats} renders"
     );
     println!();
-    println!("| scene | strategy | ns per sample | M samples/s per thread |");
-    println!("|---|---|---:|---:|");
+    println!(
+        "| scene | strategy | ns per sample, power | ns per sample, tree | tree / power | \
+         M samples/s per thread, tree |"
+    );
+    println!("|---|---|---:|---:|---:|---:|");
     let grid = Tiles::new(size, size);
     for name in builtin::NAMES {
         let scene = Scene::open(name)?;
         let rays = scene.camera.rays(1.0);
         let bvh = &scene.geometry.bvh;
         for strategy in Strategy::ALL {
-            let integrator = Integrator::new(
-                &scene,
-                RenderSettings {
-                    strategy,
-                    ..RenderSettings::default()
-                },
-            );
+            let integrators = [Selection::Power, Selection::Tree].map(|selection| {
+                Integrator::new(
+                    &scene,
+                    RenderSettings {
+                        strategy,
+                        selection,
+                        ..RenderSettings::default()
+                    },
+                )
+            });
             let mut stats = Stats::default();
             // Warm-up (the BSDF's albedo table is built on first use).
-            std::hint::black_box(render_tile(&integrator, bvh, &rays, grid, 0, 0, &mut stats));
-            let mut fastest = vec![Duration::MAX; grid.count() as usize];
-            for _ in 0..repeats {
-                for (tile, best) in (0..grid.count()).zip(fastest.iter_mut()) {
-                    let start = Instant::now();
-                    let pixels = render_tile(&integrator, bvh, &rays, grid, tile, 0, &mut stats);
-                    *best = (*best).min(start.elapsed());
-                    std::hint::black_box(pixels);
+            for integrator in &integrators {
+                std::hint::black_box(render_tile(integrator, bvh, &rays, grid, 0, 0, &mut stats));
+            }
+            let mut fastest = [(); 2].map(|_| vec![Duration::MAX; grid.count() as usize]);
+            for round in 0..repeats {
+                for tile in 0..grid.count() {
+                    // Each goes first in every other round: whichever runs first warms caches.
+                    let order = if round % 2 == 0 { [0, 1] } else { [1, 0] };
+                    for k in order {
+                        let (integrator, best) = (&integrators[k], &mut fastest[k]);
+                        let start = Instant::now();
+                        let pixels = render_tile(integrator, bvh, &rays, grid, tile, 0, &mut stats);
+                        let best = &mut best[tile as usize];
+                        *best = (*best).min(start.elapsed());
+                        std::hint::black_box(pixels);
+                    }
                 }
             }
-            let total: Duration = fastest.iter().sum();
-            let ns = total.as_secs_f64() * 1e9 / f64::from(size * size);
+            let [power, tree] = fastest
+                .map(|f| f.iter().sum::<Duration>().as_secs_f64() * 1e9 / f64::from(size * size));
             println!(
-                "| {name} | {} | {ns:.1} | {:.3} |",
+                "| {name} | {} | {power:.1} | {tree:.1} | {:.3} | {:.3} |",
                 strategy.name(),
-                1e3 / ns
+                tree / power,
+                1e3 / tree
             );
         }
     }

@@ -8,7 +8,7 @@ use std::sync::atomic::AtomicBool;
 use super::ImageArgs;
 use crate::compare::report::sci;
 use crate::compare::*;
-use crate::light::Strategy;
+use crate::light::{Selection, Strategy};
 
 /// `portalview compare`: every strategy gets the same pass render time; MSE against a reference
 /// is recorded as they converge. Writes convergence.csv, convergence.svg and summary.md into
@@ -25,6 +25,11 @@ pub struct CompareArgs {
     /// Strategies to compare, comma-separated.
     #[arg(long, value_enum, value_delimiter = ',', default_values_t = Strategy::ALL)]
     pub strategies: Vec<Strategy>,
+    /// How the compared renders pick lights, comma-separated: with two, every strategy is
+    /// rendered with each, side by side at equal time, each selection's files in
+    /// --out/SELECTION, and the efficiency of the tree over power printed per strategy.
+    #[arg(long, value_enum, value_delimiter = ',', default_values_t = [Selection::Tree])]
+    pub light_selection: Vec<Selection>,
     /// Pass render time per strategy, in seconds (the whole run takes this times the number
     /// of strategies, plus the reference).
     #[arg(long)]
@@ -84,6 +89,17 @@ pub fn run(args: &CompareArgs) -> Result<()> {
         anyhow::ensure!((0.0..=1.0).contains(&a), "--alpha {a} is not in [0, 1]");
     }
     anyhow::ensure!(!args.strategies.is_empty(), "--strategies lists none");
+    anyhow::ensure!(
+        !args.light_selection.is_empty(),
+        "--light-selection lists none"
+    );
+    for (i, s) in args.light_selection.iter().enumerate() {
+        anyhow::ensure!(
+            !args.light_selection[..i].contains(s),
+            "--light-selection lists {} twice",
+            s.name()
+        );
+    }
     anyhow::ensure!(args.runs > 0, "--runs must be at least 1");
     for (i, s) in args.strategies.iter().enumerate() {
         anyhow::ensure!(
@@ -195,37 +211,61 @@ pub fn run(args: &CompareArgs) -> Result<()> {
         } else {
             args.out.clone()
         };
-        let mut runs = Vec::new();
+        let selections = &args.light_selection;
+        // Per selection, its folder and its runs (one per seed).
+        let dirs: Vec<PathBuf> = selections
+            .iter()
+            .map(|s| match selections.len() {
+                1 => dir.clone(),
+                _ => dir.join(s.name()),
+            })
+            .collect();
+        let mut runs: Vec<Vec<SceneComparison>> = vec![Vec::new(); selections.len()];
         for &seed in &seeds {
-            let settings = CompareSettings {
-                strategies: args.strategies.clone(),
-                seconds: args.seconds,
-                image,
-                seed,
-                sampler: args.image.sampler,
-                mixture: args.image.mixture,
-                alpha: args.alpha,
-            };
+            let settings: Vec<CompareSettings> = selections
+                .iter()
+                .map(|&selection| CompareSettings {
+                    strategies: args.strategies.clone(),
+                    seconds: args.seconds,
+                    image,
+                    seed,
+                    sampler: args.image.sampler,
+                    mixture: args.image.mixture,
+                    selection,
+                    alpha: args.alpha,
+                })
+                .collect();
             let progress = progress_bar(0, "{bar:40} {msg}  {elapsed_precise}");
-            let comparison = compare(&scene, &settings, &reference, &progress);
+            let each = compare_each(&scene, &settings, &reference, &progress);
             progress.finish_and_clear();
-            if seeds.len() == 1 {
-                written.extend(write_scene_outputs(&dir, &comparison)?);
-                println!("{}", summary_markdown(&comparison));
-            } else {
-                written.extend(write_scene_outputs(
-                    &dir.join(format!("seed-{seed}")),
-                    &comparison,
-                )?);
-                println!("{}", run_line(&comparison));
+            for ((comparison, dir), runs) in each.into_iter().zip(&dirs).zip(&mut runs) {
+                let label = match selections.len() {
+                    1 => String::new(),
+                    _ => format!("light selection {}: ", comparison.settings.selection.name()),
+                };
+                if seeds.len() == 1 {
+                    written.extend(write_scene_outputs(dir, &comparison)?);
+                    println!("{label}{}", summary_markdown(&comparison));
+                } else {
+                    written.extend(write_scene_outputs(
+                        &dir.join(format!("seed-{seed}")),
+                        &comparison,
+                    )?);
+                    println!("{label}{}", run_line(&comparison));
+                }
+                runs.push(comparison);
             }
-            runs.push(comparison);
         }
-        if runs.len() > 1 {
-            written.extend(write_runs_outputs(&dir, &runs)?);
-            println!("\n{}", runs_markdown(&runs));
+        for (runs, dir) in runs.iter().zip(&dirs) {
+            if runs.len() > 1 {
+                written.extend(write_runs_outputs(dir, runs)?);
+                println!("\n{}", runs_markdown(runs));
+            }
         }
-        comparisons.extend(runs);
+        if let [first, second] = &runs[..] {
+            println!("\n{}", selection_ratios(first, second));
+        }
+        comparisons.extend(runs.into_iter().flatten());
     }
     if args.figure8 {
         written.extend(write_figure8_outputs(&args.out, &comparisons)?);
@@ -235,6 +275,62 @@ pub fn run(args: &CompareArgs) -> Result<()> {
         println!("wrote {}", path.display());
     }
     Ok(())
+}
+
+/// Per strategy, the efficiency of the second selection's render over the first's, both
+/// rendered side by side: per seed `e_2 / e_1` (`e = 1 / (MSE × seconds)`, and from the MSE
+/// less the reference's floor), then the mean over the seeds ± its standard error.
+fn selection_ratios(first: &[SceneComparison], second: &[SceneComparison]) -> String {
+    let (Some(a), Some(b)) = (first.first(), second.first()) else {
+        return String::new();
+    };
+    let mut out = format!(
+        "Efficiency of light selection {} over {}, side by side at equal time ({} run{}):\n\n\
+         | strategy | efficiency ratio | from MSE − floor |\n|---|---:|---:|\n",
+        b.settings.selection.name(),
+        a.settings.selection.name(),
+        first.len(),
+        if first.len() == 1 { "" } else { "s" }
+    );
+    for &strategy in &a.settings.strategies {
+        let ratios = |floor: bool| -> Vec<f64> {
+            first
+                .iter()
+                .zip(second)
+                .filter_map(|(x, y)| {
+                    let find = |c: &SceneComparison| {
+                        c.results
+                            .iter()
+                            .find(|r| r.strategy == strategy)
+                            .and_then(|r| {
+                                if floor {
+                                    r.mse_above_floor.map(|e| 1.0 / (e * r.seconds))
+                                } else {
+                                    Some(r.efficiency)
+                                }
+                            })
+                    };
+                    Some(find(y)? / find(x)?).filter(|v| v.is_finite())
+                })
+                .collect()
+        };
+        let show = |v: Vec<f64>| match v.len() {
+            0 => "–".to_owned(),
+            1 => format!("{:.2}×", v[0]),
+            n => {
+                let mean = v.iter().sum::<f64>() / n as f64;
+                let var = v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1) as f64;
+                format!("{mean:.2}× ± {:.2}", (var / n as f64).sqrt())
+            }
+        };
+        out.push_str(&format!(
+            "| {} | {} | {} |\n",
+            strategy.name(),
+            show(ratios(false)),
+            show(ratios(true))
+        ));
+    }
+    out
 }
 
 /// One run of `--runs`, in a line: each strategy's spp and efficiency over light sampling's.

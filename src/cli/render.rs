@@ -8,9 +8,9 @@ use std::time::{Duration, Instant};
 
 use super::ImageArgs;
 use crate::compare::progress_bar;
-use crate::light::Strategy;
 use crate::light::Technique;
 use crate::light::antishadow::Region;
+use crate::light::{Selection, Strategy};
 use crate::render::integrator::{Integrator, RenderSettings};
 use crate::render::stats::Stats;
 use crate::render::{Isa, film::Film, render_pass, tonemap};
@@ -36,6 +36,10 @@ pub struct RenderArgs {
     pub exposure: f32,
     #[arg(long, value_enum, default_value_t = Strategy::Antishadow)]
     pub strategy: Strategy,
+    /// How a shading point picks the light it samples: by a tree of the lights' bounds that
+    /// knows their portals, or by power alone.
+    #[arg(long, value_enum, default_value_t = Selection::default())]
+    pub light_selection: Selection,
     /// Replace every portal's alpha (probability of sampling the light itself).
     #[arg(long)]
     pub alpha: Option<f32>,
@@ -63,6 +67,7 @@ pub fn run(args: &RenderArgs) -> Result<()> {
         seed: args.image.seed,
         sampler: args.image.sampler,
         mixture: args.image.mixture,
+        selection: args.light_selection,
     };
     let integrator = Integrator::new(&scene, settings);
     let (film, stats, elapsed) = match args.seconds {

@@ -5,7 +5,7 @@ use clap::Args;
 use super::EnvironmentArgs;
 use crate::app::ViewOptions;
 use crate::app::overlay::OverlayKind;
-use crate::light::{Mixture, Strategy};
+use crate::light::{Mixture, Selection, Strategy};
 use crate::sampling::SamplerKind;
 
 #[derive(Args, Debug, Clone, Default)]
@@ -32,6 +32,9 @@ pub struct ViewArgs {
     /// How a shading point draws from its light mixture (else the one used last).
     #[arg(long, value_enum)]
     pub mixture: Option<Mixture>,
+    /// How a shading point picks the light it samples (else the one used last).
+    #[arg(long, value_enum)]
+    pub light_selection: Option<Selection>,
     /// The start-up scene's sky, as for `render` (replaces the scene's).
     #[command(flatten)]
     pub environment: EnvironmentArgs,
@@ -47,6 +50,7 @@ impl From<ViewArgs> for ViewOptions {
             max_depth: a.max_depth,
             sampler: a.sampler,
             mixture: a.mixture,
+            selection: a.light_selection,
             environment: (&a.environment).into(),
         }
     }

@@ -7,7 +7,7 @@ use std::time::Instant;
 
 use super::metrics::{mse, mse_above_floor, relmse};
 use super::reference::{ImageSpec, Reference, ReferenceInfo, ReferenceOrigin};
-use crate::light::{Mixture, Strategy};
+use crate::light::{Mixture, Selection, Strategy};
 use crate::render::film::Film;
 use crate::render::integrator::{Integrator, RenderSettings};
 use crate::render::stats::Stats;
@@ -140,6 +140,8 @@ pub struct CompareSettings {
     pub sampler: SamplerKind,
     /// How the compared renders draw from a light mixture (the reference's: one sample).
     pub mixture: Mixture,
+    /// How the compared renders pick lights.
+    pub selection: Selection,
     /// Replaces every portal's and window's alpha in the compared renders (not in the
     /// reference's, whose converged image does not depend on it).
     pub alpha: Option<f32>,
@@ -201,84 +203,134 @@ pub fn compare(
     reference: &Reference,
     progress: &ProgressBar,
 ) -> SceneComparison {
-    let image = settings.image;
-    let render = RenderSettings {
-        strategy: Strategy::Light,
-        alpha: settings.alpha,
-        max_depth: image.max_depth,
-        seed: settings.seed,
-        sampler: settings.sampler,
-        mixture: settings.mixture,
-    };
-    let mut schedule = EqualTime::new(
-        scene.clone(),
-        &settings.strategies,
-        image.width,
-        image.height,
-        render,
-    );
-    let n = settings.strategies.len();
-    progress.set_length((settings.seconds * n as f64 * 1e3) as u64);
-    let mut next_record = vec![0.0; n];
-    let mut points = Vec::new();
+    let mut all = compare_each(scene, std::slice::from_ref(settings), reference, progress);
+    all.swap_remove(0)
+}
+
+/// [`compare`] for each of `settings` at once, side by side: every step renders one pass of
+/// the run, over all of them, with the least pass time, so that a machine whose speed drifts
+/// during the comparison slows all of them alike (two light selections, say).
+pub fn compare_each(
+    scene: &Scene,
+    settings: &[CompareSettings],
+    reference: &Reference,
+    progress: &ProgressBar,
+) -> Vec<SceneComparison> {
+    let mut schedules: Vec<EqualTime> = settings
+        .iter()
+        .map(|settings| {
+            let image = settings.image;
+            let render = RenderSettings {
+                strategy: Strategy::Light,
+                alpha: settings.alpha,
+                max_depth: image.max_depth,
+                seed: settings.seed,
+                sampler: settings.sampler,
+                mixture: settings.mixture,
+                selection: settings.selection,
+            };
+            EqualTime::new(
+                scene.clone(),
+                &settings.strategies,
+                image.width,
+                image.height,
+                render,
+            )
+        })
+        .collect();
+    let seconds = settings.iter().map(|s| s.seconds).fold(0.0, f64::max);
+    let n: usize = settings.iter().map(|s| s.strategies.len()).sum();
+    progress.set_length((seconds * n as f64 * 1e3) as u64);
+    let mut next_record: Vec<Vec<f64>> = settings
+        .iter()
+        .map(|s| vec![0.0; s.strategies.len()])
+        .collect();
+    let mut points: Vec<Vec<ConvergencePoint>> = vec![Vec::new(); settings.len()];
     let never = AtomicBool::new(false);
-    while n > 0 && schedule.min_seconds() < settings.seconds {
+    loop {
+        // The schedule whose next run has the least time, among those not yet done.
+        let next = schedules
+            .iter()
+            .enumerate()
+            .filter(|(k, s)| !s.runs().is_empty() && s.min_seconds() < settings[*k].seconds)
+            .min_by(|a, b| a.1.min_seconds().total_cmp(&b.1.min_seconds()))
+            .map(|(k, _)| k);
+        let Some(k) = next else {
+            break;
+        };
+        let schedule = &mut schedules[k];
         let Ok(Some(i)) = schedule.step(&never) else {
             break;
         };
         let run = &schedule.runs()[i];
-        if run.seconds >= next_record[i] || run.seconds >= settings.seconds {
+        if run.seconds >= next_record[k][i] || run.seconds >= settings[k].seconds {
             let mean = run.film.mean();
-            points.push(ConvergencePoint {
+            points[k].push(ConvergencePoint {
                 strategy: run.strategy,
                 seconds: run.seconds,
                 spp: run.film.spp,
                 mse: mse(&mean, &reference.pixels),
                 relmse: relmse(&mean, &reference.pixels),
             });
-            next_record[i] = run.seconds * RECORD_FACTOR;
+            next_record[k][i] = run.seconds * RECORD_FACTOR;
         }
-        let total: f64 = schedule
-            .runs()
+        let total: f64 = schedules
             .iter()
-            .map(|r| r.seconds.min(settings.seconds))
+            .zip(settings)
+            .flat_map(|(s, settings)| s.runs().iter().map(|r| r.seconds.min(settings.seconds)))
             .sum();
         progress.set_position((total * 1e3) as u64);
-        let spp: Vec<String> = schedule
-            .runs()
+        let spp: Vec<String> = schedules
             .iter()
-            .map(|r| format!("{} {}", r.strategy.name(), r.film.spp))
+            .zip(settings)
+            .flat_map(|(s, settings)| {
+                let label = if schedules.len() > 1 {
+                    format!(" ({})", settings.selection.name())
+                } else {
+                    String::new()
+                };
+                s.runs()
+                    .iter()
+                    .map(move |r| format!("{}{label} {}", r.strategy.name(), r.film.spp))
+            })
             .collect();
         progress.set_message(format!("{} spp", spp.join(", ")));
     }
     let floor = reference.info.as_ref().map(|i| i.convergence.mse_floor);
-    let mut results: Vec<StrategyResult> = schedule
-        .runs()
+    schedules
         .iter()
-        .map(|run| {
-            let mean = run.film.mean();
-            let error = mse(&mean, &reference.pixels);
-            StrategyResult {
-                strategy: run.strategy,
-                spp: run.film.spp,
-                seconds: run.seconds,
-                mse: error,
-                relmse: relmse(&mean, &reference.pixels),
-                efficiency: 1.0 / (error * run.seconds),
-                efficiency_vs_light: None,
-                mse_above_floor: mse_above_floor(error, floor),
-                efficiency_vs_light_above_floor: None,
-                stats: run.stats,
+        .zip(settings)
+        .zip(points)
+        .map(|((schedule, settings), points)| {
+            let mut results: Vec<StrategyResult> = schedule
+                .runs()
+                .iter()
+                .map(|run| {
+                    let mean = run.film.mean();
+                    let error = mse(&mean, &reference.pixels);
+                    StrategyResult {
+                        strategy: run.strategy,
+                        spp: run.film.spp,
+                        seconds: run.seconds,
+                        mse: error,
+                        relmse: relmse(&mean, &reference.pixels),
+                        efficiency: 1.0 / (error * run.seconds),
+                        efficiency_vs_light: None,
+                        mse_above_floor: mse_above_floor(error, floor),
+                        efficiency_vs_light_above_floor: None,
+                        stats: run.stats,
+                    }
+                })
+                .collect();
+            set_efficiency_ratios(&mut results);
+            SceneComparison {
+                scene: scene.name.clone(),
+                settings: settings.clone(),
+                reference_info: reference.info.clone(),
+                reference_origin: reference.origin.clone(),
+                points,
+                results,
             }
         })
-        .collect();
-    set_efficiency_ratios(&mut results);
-    SceneComparison {
-        scene: scene.name.clone(),
-        settings: settings.clone(),
-        reference_info: reference.info.clone(),
-        reference_origin: reference.origin.clone(),
-        points,
-        results,
-    }
+        .collect()
 }

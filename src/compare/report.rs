@@ -610,6 +610,7 @@ mod tests {
                 seed: 0,
                 sampler: Default::default(),
                 mixture: Default::default(),
+                selection: Default::default(),
                 alpha: None,
             },
             reference_info: Some(ReferenceInfo {

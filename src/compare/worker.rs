@@ -15,7 +15,7 @@ use crate::compare::{
     ConvergencePoint, EqualTime, ImageSpec, Reference, ReferenceBudget, ReferenceOrigin, cache_key,
     find_cached_reference, load_reference, mse, relmse, render_reference, store_reference,
 };
-use crate::light::{Mixture, Strategy};
+use crate::light::{Mixture, Selection, Strategy};
 use crate::render::Cancelled;
 use crate::render::integrator::RenderSettings;
 use crate::render::shell::{Outbox, Work, WorkerHandle};
@@ -52,6 +52,8 @@ pub struct CompareRequest {
     pub sampler: SamplerKind,
     /// How the compared renders draw from a light mixture.
     pub mixture: Mixture,
+    /// How the compared renders pick lights.
+    pub selection: Selection,
     pub reference: ReferenceSource,
     /// A reference the UI already holds: used instead of the source when it fits (same
     /// scene, camera, size and depth, and at least the budget; or the same file).
@@ -338,6 +340,7 @@ impl CompareWork {
                         seed: request.seed,
                         sampler: request.sampler,
                         mixture: request.mixture,
+                        selection: request.selection,
                     };
                     let schedule = EqualTime::new(
                         request.scene.clone(),

@@ -20,7 +20,8 @@ use super::antishadow::Region;
 use super::area::{AreaLight, LightPoint};
 use super::portal::Portal;
 use super::punctual::Lamp;
-use super::{LightSet, Strategy, Technique, split_share};
+use super::tree::{LightTree, TreeInputs};
+use super::{LightSet, Selection, Strategy, Technique, split_share};
 use crate::sampling::polygon::{
     Cut, Plane, Verts, clip_convex_in, convex_hull_in_plane, merge_close_into,
     sample_polygon_area_ordered,
@@ -178,21 +179,17 @@ pub struct LightSample {
     pub technique_pdf: f32,
 }
 
-/// What [`LightSampler::pick`] chose: an area light or a lamp, by index in its own list, or
-/// the environment.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum PickedLight {
-    Area(usize),
-    Lamp(usize),
-    Environment,
-}
+pub use super::tree::PickedLight;
 
 /// Samples lights for a scene under one strategy.
 #[derive(Clone, Debug)]
 pub struct LightSampler {
     strategy: Strategy,
+    selection: Selection,
     /// Area lights, then lamps, then the environment (if any), by power.
     by_power: Distribution1D,
+    /// The lights' bounds, for [`Selection::Tree`] (empty for power).
+    tree: LightTree,
     /// How many area lights come first in `by_power`.
     area_lights: usize,
     /// How many lamps follow them.
@@ -205,7 +202,18 @@ pub struct LightSampler {
 
 impl LightSampler {
     /// `alpha_override` replaces every portal's alpha (the CLI's `--alpha`, the viewer's slider).
+    /// Lights are picked by the tree ([`Selection::Tree`]).
     pub fn new(scene: &impl LightSet, strategy: Strategy, alpha_override: Option<f32>) -> Self {
+        Self::with_selection(scene, strategy, alpha_override, Selection::Tree)
+    }
+
+    /// [`Self::new`] picking lights by `selection`.
+    pub fn with_selection(
+        scene: &impl LightSet,
+        strategy: Strategy,
+        alpha_override: Option<f32>,
+        selection: Selection,
+    ) -> Self {
         let lights = &scene.lights();
         let mut portals_of = vec![ArrayVec::new(); lights.len()];
         for (i, p) in scene.portals().iter().enumerate() {
@@ -221,9 +229,26 @@ impl LightSampler {
                     .fold(0.0, f32::max);
                 alpha_override.unwrap_or(authored).clamp(0.0, 1.0)
             })
-            .collect();
+            .collect::<Vec<f32>>();
+        let tree = match selection {
+            Selection::Tree => {
+                let windows = scene.windows().iter().map(|w| w.alpha).fold(0.0, f32::max);
+                LightTree::new(
+                    scene,
+                    &TreeInputs {
+                        portal_aware: strategy != Strategy::Light,
+                        portals_of: &portals_of,
+                        alpha_of: &alpha_of,
+                        environment_alpha: alpha_override.unwrap_or(windows).clamp(0.0, 1.0),
+                    },
+                )
+            }
+            Selection::Power => LightTree::default(),
+        };
         LightSampler {
             strategy,
+            selection,
+            tree,
             by_power: Distribution1D::new(
                 lights
                     .iter()
@@ -238,9 +263,43 @@ impl LightSampler {
         }
     }
 
-    /// Picks an area light or a lamp by power: which, and its probability.
+    /// [`Self::new`] picking lights by `tree` (tests give it wrong bounds).
+    pub fn with_tree(
+        scene: &impl LightSet,
+        strategy: Strategy,
+        alpha_override: Option<f32>,
+        tree: LightTree,
+    ) -> Self {
+        LightSampler {
+            tree,
+            ..Self::with_selection(scene, strategy, alpha_override, Selection::Power)
+        }
+        .picking_by_tree()
+    }
+
+    fn picking_by_tree(mut self) -> Self {
+        self.selection = Selection::Tree;
+        self
+    }
+
+    /// How lights are picked.
+    pub fn selection(&self) -> Selection {
+        self.selection
+    }
+
+    /// The light tree ([`Selection::Tree`]; empty for power).
+    pub fn tree(&self) -> &LightTree {
+        &self.tree
+    }
+
+    /// Picks an area light, a lamp or the environment for the shading point `x` with normal
+    /// `n` (facing the side light is gathered from): which, and its probability. `None` where
+    /// nothing can be picked (no light, or none that can reach `x`).
     #[inline(always)]
-    pub fn pick(&self, u: f32) -> Option<(PickedLight, f32)> {
+    pub fn pick(&self, u: f32, x: Vec3, n: Vec3) -> Option<(PickedLight, f32)> {
+        if self.selection == Selection::Tree {
+            return self.tree.pick(u, x, n);
+        }
         let (i, p, _) = self.by_power.sample(u)?;
         let picked = match i.checked_sub(self.area_lights) {
             None => PickedLight::Area(i),
@@ -250,19 +309,32 @@ impl LightSampler {
         Some((picked, p))
     }
 
-    /// The probability of picking area light `light`.
-    pub fn light_probability(&self, light: usize) -> f32 {
-        self.by_power.pmf(light)
+    /// The probability that [`Self::pick`] picks `light` at `x` with normal `n`.
+    #[inline(always)]
+    pub fn probability(&self, light: PickedLight, x: Vec3, n: Vec3) -> f32 {
+        if self.selection == Selection::Tree {
+            return self.tree.probability(light, x, n);
+        }
+        self.by_power.pmf(match light {
+            PickedLight::Area(i) => i,
+            PickedLight::Lamp(k) => self.area_lights + k,
+            PickedLight::Environment => self.area_lights + self.lamps,
+        })
     }
 
-    /// The probability of picking lamp `lamp`.
-    pub fn lamp_probability(&self, lamp: usize) -> f32 {
-        self.by_power.pmf(self.area_lights + lamp)
+    /// The probability of picking area light `light` at `x` with normal `n`.
+    pub fn light_probability(&self, light: usize, x: Vec3, n: Vec3) -> f32 {
+        self.probability(PickedLight::Area(light), x, n)
     }
 
-    /// The probability of picking the environment (0 without one).
-    pub fn environment_probability(&self) -> f32 {
-        self.by_power.pmf(self.area_lights + self.lamps)
+    /// The probability of picking the environment at `x` with normal `n` (0 without one).
+    pub fn environment_probability(&self, x: Vec3, n: Vec3) -> f32 {
+        if self.selection == Selection::Power
+            && self.by_power.len() == self.area_lights + self.lamps
+        {
+            return 0.0;
+        }
+        self.probability(PickedLight::Environment, x, n)
     }
 
     /// Classifies `x` against the light's portals and fixes the mixture there.

@@ -9,6 +9,7 @@ pub mod hull;
 pub mod portal;
 pub mod punctual;
 pub mod sky;
+pub mod tree;
 pub mod window;
 
 use serde::{Deserialize, Serialize};
@@ -106,6 +107,30 @@ impl Strategy {
                 Region::Antiantumbra => Some(Technique::Portal),
                 _ => Some(Technique::Projection),
             },
+        }
+    }
+}
+
+/// How a shading point picks the light it samples (`docs/method.md` §10).
+#[derive(
+    Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize, clap::ValueEnum,
+)]
+pub enum Selection {
+    /// By a tree of the lights' bounds (position, direction, intensity), portals bounding the
+    /// lights behind them: lights that can send the point much light are picked more.
+    #[default]
+    Tree,
+    /// By power alone, the same everywhere.
+    Power,
+}
+
+impl Selection {
+    pub const ALL: [Selection; 2] = [Selection::Tree, Selection::Power];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Selection::Tree => "tree",
+            Selection::Power => "power",
         }
     }
 }

@@ -97,6 +97,11 @@ impl Lamp {
         self.power
     }
 
+    /// `cos(outer)`: the spot's cone (−1 for other lamps).
+    pub fn cos_outer(&self) -> f32 {
+        self.cos_outer
+    }
+
     /// The extension's spot falloff for a direction `w` leaving the lamp (unit):
     /// `clamp((cos θ − cos outer) / (cos inner − cos outer), 0, 1)²`; 1 for other lamps.
     pub fn falloff(&self, w: Vec3) -> f32 {

@@ -10,7 +10,7 @@ use crate::asset::desc::AlphaMode;
 use crate::light::area::LightPoint;
 use crate::light::estimator::{LightContext, LightSample, LightSampler, PickedLight};
 use crate::light::sky::{SkyContext, SkySample, SkySampler};
-use crate::light::{LightSet, Mixture, Strategy, Technique};
+use crate::light::{LightSet, Mixture, Selection, Strategy, Technique};
 use crate::material::Material;
 use crate::sampling::{Frame, Sampler, SamplerKind, power_heuristic};
 use crate::scene::bvh::{Hit, Tracer};
@@ -30,6 +30,8 @@ pub struct RenderSettings {
     pub sampler: SamplerKind,
     /// One sample of the light mixture per shading point, or one from each share.
     pub mixture: Mixture,
+    /// How a shading point picks the light it samples.
+    pub selection: Selection,
 }
 
 impl Default for RenderSettings {
@@ -41,6 +43,7 @@ impl Default for RenderSettings {
             seed: 0,
             sampler: SamplerKind::default(),
             mixture: Mixture::default(),
+            selection: Selection::default(),
         }
     }
 }
@@ -109,6 +112,8 @@ struct Direct {
 /// The previous vertex, for weighting emission that BSDF sampling finds.
 struct Previous<'c> {
     x: Vec3,
+    /// Its geometric normal, facing the side the path left from (the light pick's `n`).
+    ng: Vec3,
     /// The context of the light picked there, if one was.
     ctx: Option<&'c LightContext>,
     bsdf_pdf: f32,
@@ -133,16 +138,31 @@ const DIRECT_LIGHT_TEST_LIMIT: usize = 16;
 
 impl<'a> Integrator<'a> {
     pub fn new(scene: &'a Scene, settings: RenderSettings) -> Self {
-        let lights = &scene.geometry.lights;
+        let lights = LightSampler::with_selection(
+            scene,
+            settings.strategy,
+            settings.alpha,
+            settings.selection,
+        );
+        Self::with_lights(scene, settings, lights)
+    }
+
+    /// [`Self::new`] picking lights with `lights` (tests give it a tree with wrong bounds).
+    pub fn with_lights(scene: &'a Scene, settings: RenderSettings, lights: LightSampler) -> Self {
+        let settings = RenderSettings {
+            selection: lights.selection(),
+            ..settings
+        };
+        let area_lights = &scene.geometry.lights;
         Integrator {
             scene,
-            lights: LightSampler::new(scene, settings.strategy, settings.alpha),
+            lights,
             sky: SkySampler::new(scene, settings.strategy, settings.alpha),
             settings,
             scale: scene.geometry.scale(),
             // A cut-out light lets rays through its holes: it must be found by tracing.
-            polygon_lights: lights.len() <= DIRECT_LIGHT_TEST_LIMIT
-                && lights.iter().all(|l| l.polygon.is_some())
+            polygon_lights: area_lights.len() <= DIRECT_LIGHT_TEST_LIMIT
+                && area_lights.iter().all(|l| l.polygon.is_some())
                 // Rays that leave the scene see the environment: the shortcut would miss it.
                 && scene.environment.is_none()
                 && scene
@@ -255,13 +275,14 @@ impl<'a> Integrator<'a> {
         let (mut o, mut d) = (origin, dir);
         // Two context buffers, reused in turn by consecutive vertices (see `fill_context`).
         let PathContexts { even, odd } = contexts;
-        let mut previous: Option<(Vec3, bool, f32)> = None;
+        let mut previous: Option<(Vec3, Vec3, bool, f32)> = None;
         stats.camera_rays += 1;
         for depth in 0..=self.settings.max_depth {
             // At the last vertex only emission matters: with polygon lights, test them directly.
             if depth == self.settings.max_depth && self.polygon_lights {
-                let prev = previous.map(|(x, picked, bsdf_pdf)| Previous {
+                let prev = previous.map(|(x, ng, picked, bsdf_pdf)| Previous {
                     x,
+                    ng,
                     ctx: picked.then_some(if depth % 2 == 0 { &*odd } else { &*even }),
                     bsdf_pdf,
                 });
@@ -276,7 +297,7 @@ impl<'a> Integrator<'a> {
                 None => tracer.closest_hit(o, d, 0.0, f32::INFINITY),
             };
             let Some(hit) = hit else {
-                l += beta * self.environment_along(d, previous.map(|(x, _, pdf)| (x, pdf)));
+                l += beta * self.environment_along(d, previous.map(|(x, ng, _, pdf)| (x, ng, pdf)));
                 break;
             };
             let tri = &geometry.triangles[hit.triangle as usize];
@@ -303,9 +324,10 @@ impl<'a> Integrator<'a> {
                 }
                 match previous {
                     None => l += beta * le,
-                    Some((x, picked, bsdf_pdf)) if le != Vec3::ZERO => {
+                    Some((x, prev_ng, picked, bsdf_pdf)) if le != Vec3::ZERO => {
                         let prev = Previous {
                             x,
+                            ng: prev_ng,
                             ctx: picked.then_some(if depth % 2 == 0 { &*odd } else { &*even }),
                             bsdf_pdf,
                         };
@@ -380,7 +402,7 @@ impl<'a> Integrator<'a> {
                 }
                 beta /= survive;
             }
-            previous = Some((shading.x, picked, bs.pdf));
+            previous = Some((shading.x, shading.ng, picked, bs.pdf));
             o = shading.x;
             d = wi;
         }
@@ -433,10 +455,10 @@ impl<'a> Integrator<'a> {
     }
 
     /// The environment's radiance along `d` for a ray that left the scene, MIS-weighted against
-    /// the environment's technique at the previous vertex `(x, bsdf_pdf)` (if any; a camera
+    /// the environment's technique at the previous vertex `(x, ng, bsdf_pdf)` (if any; a camera
     /// ray sees it unweighted). Always inlined, as `sky_direct` is.
     #[inline(always)]
-    fn environment_along(&self, d: Vec3, previous: Option<(Vec3, f32)>) -> Vec3 {
+    fn environment_along(&self, d: Vec3, previous: Option<(Vec3, Vec3, f32)>) -> Vec3 {
         let Some(env) = self.scene.environment() else {
             return Vec3::ZERO;
         };
@@ -444,8 +466,8 @@ impl<'a> Integrator<'a> {
         match previous {
             None => le,
             Some(_) if le == Vec3::ZERO => Vec3::ZERO,
-            Some((x, bsdf_pdf)) => {
-                let prob = self.lights.environment_probability();
+            Some((x, ng, bsdf_pdf)) => {
+                let prob = self.lights.environment_probability(x, ng);
                 let light_pdf = if prob > 0.0 {
                     // Filled in place: a context is kilobytes, too large to return by value.
                     let mut ctx = SkyContext::new();
@@ -531,7 +553,7 @@ impl<'a> Integrator<'a> {
         ctx: &mut LightContext,
     ) -> Option<Direct> {
         let ([u_pick, u_technique], u) = rng.uniforms_uniform2();
-        let (light, light_prob) = match self.lights.pick(u_pick)? {
+        let (light, light_prob) = match self.lights.pick(u_pick, s.x, s.ng)? {
             (PickedLight::Area(light), p) => (light, p),
             (PickedLight::Lamp(lamp), p) => {
                 // `ctx` is left as it was: the caller must not reuse it for MIS.
@@ -789,7 +811,7 @@ impl<'a> Integrator<'a> {
     /// previous vertex, which reached point `y` of light `light` at distance `t`.
     #[inline(always)]
     fn light_pdf(&self, prev: &Previous, light: usize, d: Vec3, y: LightPoint, t: f32) -> f32 {
-        let prob = self.lights.light_probability(light);
+        let prob = self.lights.light_probability(light, prev.x, prev.ng);
         if prob <= 0.0 {
             return 0.0;
         }

@@ -30,6 +30,9 @@ pub struct PrimaryBuffer {
     pub technique: Vec<Option<Technique>>,
     /// Hit points (for the inspector).
     pub points: Vec<Option<Vec3>>,
+    /// How many lights carry 90% of the light tree's pick probability at the hit
+    /// ([`lights_for_share`]; `None` where the ray hits nothing or no light can be picked).
+    pub spread: Vec<Option<u32>>,
 }
 
 impl PrimaryBuffer {
@@ -62,9 +65,11 @@ impl PrimaryBuffer {
             combined: Vec::with_capacity(n),
             technique: Vec::with_capacity(n),
             points: Vec::with_capacity(n),
+            spread: Vec::with_capacity(n),
         };
-        for (point, regions, combined, technique) in rows.into_iter().flatten() {
+        for (point, regions, combined, technique, spread) in rows.into_iter().flatten() {
             buffer.points.push(point);
+            buffer.spread.push(spread);
             buffer.regions.extend(regions);
             buffer.combined.push(combined);
             buffer.technique.push(technique);
@@ -97,13 +102,42 @@ impl PrimaryBuffer {
     }
 }
 
-/// One pixel: hit point, region per portal, combined region, technique.
+/// One pixel: hit point, region per portal, combined region, technique, selection spread.
 type PixelClass = (
     Option<Vec3>,
     Vec<Option<Region>>,
     Option<Region>,
     Option<Technique>,
+    Option<u32>,
 );
+
+/// The share of the pick probability [`PrimaryBuffer::spread`] counts lights for.
+pub const SPREAD_SHARE: f32 = 0.9;
+
+/// The fewest lights whose pick probabilities at `x` (normal `n`) sum to `share` of the
+/// total: 1 where one light takes nearly every sample, the number of lights where the
+/// picks are even. `None` where no light can be picked.
+pub fn lights_for_share(sampler: &LightSampler, x: Vec3, n: Vec3, share: f32) -> Option<u32> {
+    let mut p: Vec<f32> = sampler
+        .tree()
+        .emitters()
+        .map(|light| sampler.probability(light, x, n))
+        .filter(|&p| p > 0.0)
+        .collect();
+    let total: f32 = p.iter().sum();
+    if total.is_nan() || total <= 0.0 {
+        return None;
+    }
+    p.sort_by(|a, b| b.total_cmp(a));
+    let mut sum = 0.0;
+    for (k, q) in p.iter().enumerate() {
+        sum += q;
+        if sum >= share * total {
+            return Some(k as u32 + 1);
+        }
+    }
+    Some(p.len() as u32)
+}
 
 fn classify_ray(
     scene: &Scene,
@@ -120,13 +154,15 @@ fn classify_ray(
             vec![None; scene.portals.len() + scene.windows.len()],
             None,
             None,
+            None,
         );
     };
     let tri = &g.triangles[hit.triangle as usize];
     let (p, _) = tri.point(hit.bary);
     let ng = tri.geometric_normal();
     // Classify where shading happens: just off the surface, on the camera's side.
-    let x = Integrator::offset(p, if ng.dot(d) > 0.0 { -ng } else { ng }, g.scale());
+    let n = if ng.dot(d) > 0.0 { -ng } else { ng };
+    let x = Integrator::offset(p, n, g.scale());
     let classify = |portal: &crate::light::portal::Portal| {
         if brute_force {
             portal.classify_brute_force(x)
@@ -157,7 +193,7 @@ fn classify_ray(
             .terms()
             .iter()
             .max_by(|a, b| a.weight.total_cmp(&b.weight));
-        let weight = sampler.light_probability(light) * top.map_or(0.0, |t| t.weight);
+        let weight = sampler.light_probability(light, x, n) * top.map_or(0.0, |t| t.weight);
         if best.is_none_or(|(w, _, _)| weight > w) {
             best = Some((weight, ctx.region, top.map(|t| t.technique)));
         }
@@ -169,12 +205,13 @@ fn classify_ray(
                 .terms
                 .iter()
                 .max_by(|a, b| a.weight.total_cmp(&b.weight));
-            let weight = sampler.environment_probability() * top.map_or(0.0, |t| t.weight);
+            let weight = sampler.environment_probability(x, n) * top.map_or(0.0, |t| t.weight);
             if best.is_none_or(|(w, _, _)| weight > w) {
                 best = Some((weight, ctx.region, top.map(|t| t.technique.technique())));
             }
         }
     }
     let (combined, technique) = best.map_or((None, None), |(_, r, t)| (Some(r), t));
-    (Some(p), regions, combined, technique)
+    let spread = lights_for_share(sampler, x, n, SPREAD_SHARE);
+    (Some(p), regions, combined, technique, spread)
 }

@@ -24,7 +24,7 @@ use crate::compare::worker::{
     CompareFrame, CompareHandle, CompareRequest, ReferenceSource, ReferenceStatus,
 };
 use crate::compare::{ImageSpec, Reference, ReferenceBudget, default_cache_dir, scene_hash};
-use crate::light::{Mixture, Strategy};
+use crate::light::{Mixture, Selection, Strategy};
 use crate::sampling::SamplerKind;
 use crate::scene::Scene;
 
@@ -103,6 +103,7 @@ struct RequestKey {
     alpha: Option<u32>,
     sampler: SamplerKind,
     mixture: Mixture,
+    selection: Selection,
     reference: ReferenceSource,
 }
 
@@ -244,7 +245,7 @@ impl CompareView {
         settings: &CompareViewSettings,
         max_depth: u32,
         alpha: Option<f32>,
-        (sampler, mixture): (SamplerKind, Mixture),
+        (sampler, mixture, selection): (SamplerKind, Mixture, Selection),
     ) {
         self.poll();
         if let Some(frame) = &self.frame
@@ -279,6 +280,7 @@ impl CompareView {
             alpha: alpha.map(f32::to_bits),
             sampler,
             mixture,
+            selection,
             reference,
         };
         if self.worker.is_some() && self.running.as_ref() == Some(&key) {
@@ -306,6 +308,7 @@ impl CompareView {
             seed: COMPARE_SEED,
             sampler,
             mixture,
+            selection,
             reference: key.reference.clone(),
             known_reference: self.last_reference.clone(),
             paused: self.paused,

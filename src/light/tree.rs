@@ -1,0 +1,884 @@
+//! Which light a shading point samples (`docs/method.md` §10): a tree of bounds over the lights
+//! (Conty Estevez & Kulla 2018; pbrt-v4's `BVHLightSampler`) whose bounds know the portals.
+//!
+//! Each light is a leaf holding one or more *parts*, each a box, a cone of emission directions
+//! and an intensity. A light without portals (or under the light strategy, which ignores
+//! them) has one part: itself. A light behind portals has one part per portal, the portal's
+//! polygon emitting into its front with the light's flux through it (its `1 − alpha` share),
+//! one for its enclosure (the light's `1 − alpha` share, at points inside the box around it
+//! and its portals), and one part for itself with its `alpha` share: any point the light can
+//! reach keeps a
+//! positive probability, through a portal's part or through the light's own, so a misplaced
+//! portal costs variance, never bias. The environment behind windows is a leaf of its
+//! windows in the same way; its `alpha` share, and directional lamps, stand beside the tree.
+//!
+//! A node's importance at a point `x` with normal `n` is pbrt-v4's `LightBounds::Importance`:
+//! intensity × the cosine of the angle by which the point lies outside the emission cone,
+//! × the cosine of the angle between `n` and the box, over the squared distance (clamped to
+//! the box's radius). It is zero only where no point of the box can send light to `x` along
+//! a direction in the cone, above the surface: the picks are exact and conservative.
+
+use arrayvec::ArrayVec;
+use glam::{Quat, Vec2, Vec3};
+
+use super::LightSet;
+use super::area::{AreaLight, luminance};
+use super::environment::Environment;
+use crate::asset::desc::LampKind;
+use crate::sampling::ONE_BELOW;
+use crate::sampling::polygon::ConvexPolygon;
+
+/// What a pick chose: an area light or a lamp, by index in its own list, or the environment.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PickedLight {
+    Area(usize),
+    Lamp(usize),
+    Environment,
+}
+
+/// Where light may come from: a box, the cone of directions it leaves in, and its intensity.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LightBounds {
+    pub lo: Vec3,
+    pub hi: Vec3,
+    /// The axis of the cone holding the emitting surfaces' normals (a spot's axis).
+    pub axis: Vec3,
+    /// `cos θ_o`: every normal lies within `θ_o` of the axis (−1: any direction).
+    pub cos_o: f32,
+    /// `cos θ_e`: light leaves within `θ_e` of a normal (0 for a surface, a spot's outer cone).
+    pub cos_e: f32,
+    /// Luminance intensity on the axis, W/sr: `L · A` for a surface, `Φ / π` for the flux
+    /// `Φ` through a portal.
+    pub intensity: f32,
+    /// Emits on both sides of its normals.
+    pub two_sided: bool,
+    /// Reaches only points inside the box (a light's own enclosure, [`enclosure_bounds`]).
+    pub inside_only: bool,
+}
+
+/// `√max(0, x)`.
+fn safe_sqrt(x: f32) -> f32 {
+    x.max(0.0).sqrt()
+}
+
+/// `cos(max(0, θ_a − θ_b))` from the sines and cosines of `θ_a, θ_b` in [0, π].
+#[inline(always)]
+fn cos_sub_clamped((sin_a, cos_a): (f32, f32), (sin_b, cos_b): (f32, f32)) -> f32 {
+    if cos_a > cos_b {
+        1.0
+    } else {
+        cos_a * cos_b + sin_a * sin_b
+    }
+}
+
+/// `sin(max(0, θ_a − θ_b))`, as [`cos_sub_clamped`].
+#[inline(always)]
+fn sin_sub_clamped((sin_a, cos_a): (f32, f32), (sin_b, cos_b): (f32, f32)) -> f32 {
+    if cos_a > cos_b {
+        0.0
+    } else {
+        sin_a * cos_b - cos_a * sin_b
+    }
+}
+
+impl LightBounds {
+    /// The importance of these bounds at `x` for a surface with unit normal `n` facing the
+    /// side light is gathered from (`Vec3::ZERO`: no surface). Zero only where no direction
+    /// from the box within the emission cone reaches `x` from above the surface.
+    #[inline(always)]
+    pub fn importance(&self, x: Vec3, n: Vec3) -> f32 {
+        if self.intensity <= 0.0 {
+            return 0.0;
+        }
+        if self.inside_only && !(x.cmpge(self.lo).all() && x.cmple(self.hi).all()) {
+            return 0.0;
+        }
+        let centre = 0.5 * (self.lo + self.hi);
+        let r2 = (0.5 * (self.hi - self.lo)).length_squared();
+        let to_x = x - centre;
+        let d2 = to_x.length_squared();
+        // The directions from the box to x lie within θ_b of the direction from its centre.
+        let (sin_b, cos_b) = if d2 <= r2 {
+            (0.0, -1.0)
+        } else {
+            let sin2 = r2 / d2;
+            (sin2.sqrt(), safe_sqrt(1.0 - sin2))
+        };
+        let wi = if d2 > 0.0 {
+            to_x / d2.sqrt()
+        } else {
+            Vec3::ZERO
+        };
+        let mut cos_w = self.axis.dot(wi);
+        if self.two_sided {
+            cos_w = cos_w.abs();
+        }
+        let w = (safe_sqrt(1.0 - cos_w * cos_w), cos_w);
+        let o = (safe_sqrt(1.0 - self.cos_o * self.cos_o), self.cos_o);
+        // The angle from the cone to x, less the box's spread.
+        let x_angle = (sin_sub_clamped(w, o), cos_sub_clamped(w, o));
+        let cos_p = cos_sub_clamped(x_angle, (sin_b, cos_b));
+        if cos_p <= self.cos_e {
+            return 0.0;
+        }
+        let mut importance = self.intensity * cos_p / d2.max(r2);
+        if n != Vec3::ZERO {
+            let cos_i = -wi.dot(n);
+            let cos_pi = cos_sub_clamped((safe_sqrt(1.0 - cos_i * cos_i), cos_i), (sin_b, cos_b));
+            importance *= cos_pi.max(0.0);
+        }
+        if importance.is_finite() {
+            importance.clamp(0.0, 1e30)
+        } else {
+            // An overflow (a point at a point lamp) is not a reason to drop a light; kept far
+            // below f32::MAX so that sums of a few stay finite.
+            1e30
+        }
+    }
+
+    /// Bounds holding both, the intensities summed.
+    pub fn union(&self, other: &LightBounds) -> LightBounds {
+        let (axis, cos_o) = cone_union((self.axis, self.cos_o), (other.axis, other.cos_o));
+        LightBounds {
+            lo: self.lo.min(other.lo),
+            hi: self.hi.max(other.hi),
+            axis,
+            cos_o,
+            cos_e: self.cos_e.min(other.cos_e),
+            intensity: self.intensity + other.intensity,
+            two_sided: self.two_sided || other.two_sided,
+            inside_only: self.inside_only && other.inside_only,
+        }
+    }
+
+    fn centroid(&self) -> Vec3 {
+        0.5 * (self.lo + self.hi)
+    }
+}
+
+/// The smallest cone (axis, `cos θ`) holding two cones (pbrt-v4's `Union(DirectionCone)`).
+fn cone_union((wa, cos_a): (Vec3, f32), (wb, cos_b): (Vec3, f32)) -> (Vec3, f32) {
+    let (theta_a, theta_b) = (cos_a.clamp(-1.0, 1.0).acos(), cos_b.clamp(-1.0, 1.0).acos());
+    let theta_d = wa.angle_between(wb);
+    if (theta_d + theta_b).min(std::f32::consts::PI) <= theta_a {
+        return (wa, cos_a);
+    }
+    if (theta_d + theta_a).min(std::f32::consts::PI) <= theta_b {
+        return (wb, cos_b);
+    }
+    let theta_o = 0.5 * (theta_a + theta_d + theta_b);
+    let whole = (wa, -1.0);
+    if theta_o >= std::f32::consts::PI {
+        return whole;
+    }
+    let axis = wa.cross(wb);
+    if axis.length_squared() == 0.0 {
+        return whole;
+    }
+    let w = Quat::from_axis_angle(axis.normalize(), theta_o - theta_a) * wa;
+    (w.normalize(), theta_o.cos())
+}
+
+/// The `i`-th of `n` points of a Hammersley set in the unit square.
+fn hammersley(i: u32, n: u32) -> Vec2 {
+    Vec2::new(
+        (i as f32 + 0.5) / n as f32,
+        (i.reverse_bits() as f64 / 4_294_967_296.0) as f32,
+    )
+}
+
+/// A light's own bounds: its triangles' box, the cone of their front normals, `L · A`.
+pub fn area_light_bounds(light: &AreaLight, share: f32) -> LightBounds {
+    let (mut lo, mut hi) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
+    let mut cone: Option<(Vec3, f32)> = None;
+    for [a, b, c] in light.triangles() {
+        lo = lo.min(a).min(b).min(c);
+        hi = hi.max(a).max(b).max(c);
+        let n = (b - a).cross(c - a).normalize_or_zero();
+        if n != Vec3::ZERO {
+            cone = Some(cone.map_or((n, 1.0), |k| cone_union(k, (n, 1.0))));
+        }
+    }
+    let (axis, cos_o) = cone.unwrap_or((Vec3::Y, -1.0));
+    LightBounds {
+        lo,
+        hi,
+        axis,
+        cos_o,
+        cos_e: 0.0,
+        intensity: share * luminance(light.radiance) * light.area(),
+        two_sided: light.double_sided,
+        inside_only: false,
+    }
+}
+
+/// A light behind portals as it lights its own enclosure (a lampshade's inside, a can's
+/// walls): the light's bounds with its `1 − alpha` share, reaching only points in the box
+/// around the light and its portals. There the estimator samples the light itself, past the
+/// portals, and the portals' parts are 0 (the points are behind them).
+pub fn enclosure_bounds(light: &AreaLight, portals: &[&ConvexPolygon], share: f32) -> LightBounds {
+    let own = area_light_bounds(light, share);
+    let (lo, hi) = portals
+        .iter()
+        .flat_map(|p| p.vertices())
+        .fold((own.lo, own.hi), |(lo, hi), &v| (lo.min(v), hi.max(v)));
+    LightBounds {
+        lo,
+        hi,
+        inside_only: true,
+        ..own
+    }
+}
+
+/// The luminance flux from `light` through `portal` from its back to its front, occluders
+/// ignored: `L ∫∫ cos θ_l cos θ_p / r² dA_p dA_l`, by a fixed quadrature (1024 pairs of
+/// points), never more than the light emits.
+pub fn flux_through(light: &AreaLight, portal: &ConvexPolygon) -> f32 {
+    const N: u32 = 32;
+    let n_p = portal.normal();
+    let mut sum = 0.0f64;
+    for i in 0..N {
+        let Some(y) = light.sample_point(hammersley(i, N)) else {
+            continue;
+        };
+        for j in 0..N {
+            let z = portal.sample_uniform(hammersley((j * 7 + i) % N, N));
+            let v = z - y.p;
+            let r2 = v.length_squared();
+            if r2 <= 0.0 {
+                continue;
+            }
+            let w = v / r2.sqrt();
+            let cos_l = if light.double_sided {
+                y.n.dot(w).abs()
+            } else {
+                y.n.dot(w).max(0.0)
+            };
+            sum += f64::from(cos_l * n_p.dot(w).max(0.0) / r2);
+        }
+    }
+    let mean = (sum / f64::from(N * N)) as f32;
+    let flux = luminance(light.radiance) * light.area() * portal.area() * mean;
+    let sides = if light.double_sided { 2.0 } else { 1.0 };
+    flux.min(std::f32::consts::PI * luminance(light.radiance) * light.area() * sides)
+}
+
+/// `∫ Y(L(ω)) max(0, ω·m) dω` over the sphere (`m = 0`: no cosine), by 4096 of the
+/// environment's own samples, which find its sun.
+fn environment_integral(environment: &Environment, m: Option<Vec3>) -> f32 {
+    const N: u32 = 4096;
+    let mut sum = 0.0f64;
+    for i in 0..N {
+        let Some((w, pdf)) = environment.sample(hammersley(i, N)) else {
+            continue;
+        };
+        if pdf <= 0.0 {
+            continue;
+        }
+        let cos = m.map_or(1.0, |m| w.dot(m).max(0.0));
+        sum += f64::from(luminance(environment.radiance(w)) * cos / pdf);
+    }
+    (sum / f64::from(N)) as f32
+}
+
+/// An emitter beside the tree: its importance does not fall off with distance.
+#[derive(Clone, Copy, Debug)]
+enum Infinite {
+    /// The environment's share not bounded by windows: a constant irradiance.
+    Environment { irradiance: f32 },
+    /// A directional lamp: its irradiance on a surface facing it, `E⊥ · cos`.
+    Directional {
+        lamp: usize,
+        irradiance: f32,
+        wi: Vec3,
+    },
+}
+
+impl Infinite {
+    fn light(&self) -> PickedLight {
+        match *self {
+            Infinite::Environment { .. } => PickedLight::Environment,
+            Infinite::Directional { lamp, .. } => PickedLight::Lamp(lamp),
+        }
+    }
+
+    #[inline(always)]
+    fn importance(&self, n: Vec3) -> f32 {
+        match *self {
+            Infinite::Environment { irradiance } => irradiance,
+            Infinite::Directional { irradiance, wi, .. } => {
+                if n == Vec3::ZERO {
+                    irradiance
+                } else {
+                    irradiance * n.dot(wi).max(0.0)
+                }
+            }
+        }
+    }
+}
+
+/// A node of the tree, in depth-first order: an interior node's first child follows it.
+#[derive(Clone, Copy, Debug)]
+struct Node {
+    /// The union of every part below.
+    bounds: LightBounds,
+    kind: NodeKind,
+}
+
+#[derive(Clone, Copy, Debug)]
+enum NodeKind {
+    /// An index into `LightTree::leaves`.
+    Leaf(u32),
+    /// The index of the second child.
+    Interior(u32),
+}
+
+/// A light in the tree: its parts, and the path from the root to it.
+#[derive(Clone, Debug)]
+struct Leaf {
+    light: PickedLight,
+    parts: std::ops::Range<usize>,
+    /// Bit `k` set: the second child at depth `k`.
+    trail: u64,
+    depth: u32,
+}
+
+/// What a light contributes to the tree: its parts (a light with none is never picked there).
+pub struct TreeLight {
+    pub light: PickedLight,
+    pub parts: Vec<LightBounds>,
+}
+
+/// The lights under their bounds, and the emitters beside them.
+#[derive(Clone, Debug, Default)]
+pub struct LightTree {
+    nodes: Vec<Node>,
+    leaves: Vec<Leaf>,
+    parts: Vec<LightBounds>,
+    /// The leaf of each area light, lamp, and of the environment, if in the tree.
+    area_leaf: Vec<Option<u32>>,
+    lamp_leaf: Vec<Option<u32>>,
+    environment_leaf: Option<u32>,
+    infinite: Vec<Infinite>,
+    /// The scene's only emitter, when it has one: picked with probability 1.
+    only: Option<PickedLight>,
+}
+
+/// How each light's parts are made.
+pub struct TreeInputs<'a> {
+    /// Whether portals and windows bound their lights (not under the light strategy).
+    pub portal_aware: bool,
+    /// The portals each area light's estimator uses, and its alpha.
+    pub portals_of: &'a [ArrayVec<usize, { super::estimator::MAX_TERMS }>],
+    pub alpha_of: &'a [f32],
+    /// The environment's alpha through its windows.
+    pub environment_alpha: f32,
+}
+
+impl LightTree {
+    /// The tree over `scene`'s lights.
+    pub fn new(scene: &impl LightSet, inputs: &TreeInputs) -> Self {
+        let mut lights: Vec<TreeLight> = Vec::new();
+        let mut infinite = Vec::new();
+        for (i, light) in scene.lights().iter().enumerate() {
+            let portals = inputs.portals_of.get(i).map_or(&[][..], |p| &p[..]);
+            let alpha = inputs.alpha_of.get(i).copied().unwrap_or(1.0);
+            let mut parts = Vec::new();
+            if inputs.portal_aware && !portals.is_empty() {
+                if alpha < 1.0 {
+                    let polygons: Vec<&ConvexPolygon> = portals
+                        .iter()
+                        .map(|&j| &scene.portals()[j].polygon)
+                        .collect();
+                    for polygon in &polygons {
+                        let flux = (1.0 - alpha) * flux_through(light, polygon);
+                        parts.push(portal_bounds(light, polygon, flux / std::f32::consts::PI));
+                    }
+                    parts.push(enclosure_bounds(light, &polygons, 1.0 - alpha));
+                }
+                if alpha > 0.0 {
+                    parts.push(area_light_bounds(light, alpha));
+                }
+            } else {
+                parts.push(area_light_bounds(light, 1.0));
+            }
+            lights.push(TreeLight {
+                light: PickedLight::Area(i),
+                parts,
+            });
+        }
+        for (k, lamp) in scene.lamps().iter().enumerate() {
+            let intensity = luminance(lamp.scale);
+            let point = |axis, cos_o, cos_e| LightBounds {
+                lo: lamp.position,
+                hi: lamp.position,
+                axis,
+                cos_o,
+                cos_e,
+                intensity,
+                two_sided: false,
+                inside_only: false,
+            };
+            let part = match lamp.kind {
+                LampKind::Point => point(Vec3::Y, -1.0, 0.0),
+                LampKind::Spot { .. } => point(lamp.direction, 1.0, lamp.cos_outer()),
+                LampKind::Directional => {
+                    infinite.push(Infinite::Directional {
+                        lamp: k,
+                        irradiance: intensity,
+                        wi: -lamp.direction,
+                    });
+                    continue;
+                }
+            };
+            lights.push(TreeLight {
+                light: PickedLight::Lamp(k),
+                parts: vec![part],
+            });
+        }
+        if let Some(environment) = scene.environment() {
+            let windows = scene.windows();
+            let alpha = if inputs.portal_aware && !windows.is_empty() {
+                inputs.environment_alpha
+            } else {
+                1.0
+            };
+            if alpha < 1.0 {
+                let parts = windows
+                    .iter()
+                    .map(|w| {
+                        // The flux through the window from the sky beyond it, over π.
+                        let e = environment_integral(environment, Some(-w.polygon.normal()));
+                        let intensity = (1.0 - alpha) * w.polygon.area() * e / std::f32::consts::PI;
+                        polygon_bounds(&w.polygon, intensity)
+                    })
+                    .collect();
+                lights.push(TreeLight {
+                    light: PickedLight::Environment,
+                    parts,
+                });
+            }
+            if alpha > 0.0 {
+                // A uniform sky of radiance L gives πL, a quarter of ∫ L dω, on a surface.
+                let irradiance = alpha * 0.25 * environment_integral(environment, None);
+                infinite.push(Infinite::Environment { irradiance });
+            }
+        }
+        Self::from_lights(lights, infinite, scene.lights().len(), scene.lamps().len())
+    }
+
+    /// A tree over `lights` given with their parts, nothing beside it: tests build trees with
+    /// deliberately wrong bounds to show that the renderer's images detect them.
+    pub fn from_parts(lights: Vec<TreeLight>, area_lights: usize, lamps: usize) -> Self {
+        Self::from_lights(lights, Vec::new(), area_lights, lamps)
+    }
+
+    /// The tree over `lights`, with `infinite` beside it.
+    fn from_lights(
+        lights: Vec<TreeLight>,
+        infinite: Vec<Infinite>,
+        area_lights: usize,
+        lamps: usize,
+    ) -> Self {
+        let mut tree = LightTree {
+            area_leaf: vec![None; area_lights],
+            lamp_leaf: vec![None; lamps],
+            infinite,
+            ..LightTree::default()
+        };
+        let mut entries: Vec<(PickedLight, std::ops::Range<usize>, LightBounds)> = Vec::new();
+        for light in lights {
+            let Some(first) = light.parts.first() else {
+                continue;
+            };
+            let union = light.parts[1..].iter().fold(*first, |u, p| u.union(p));
+            let start = tree.parts.len();
+            tree.parts.extend(light.parts);
+            entries.push((light.light, start..tree.parts.len(), union));
+        }
+        let mut emitters: Vec<PickedLight> = Vec::new();
+        for light in entries
+            .iter()
+            .map(|e| e.0)
+            .chain(tree.infinite.iter().map(Infinite::light))
+        {
+            if !emitters.contains(&light) {
+                emitters.push(light);
+            }
+        }
+        if let [only] = emitters[..] {
+            tree.only = Some(only);
+        }
+        if !entries.is_empty() {
+            let mut order: Vec<usize> = (0..entries.len()).collect();
+            tree.build(&entries, &mut order, 0, 0);
+        }
+        for (k, leaf) in tree.leaves.iter().enumerate() {
+            let slot = match leaf.light {
+                PickedLight::Area(i) => tree.area_leaf.get_mut(i),
+                PickedLight::Lamp(i) => tree.lamp_leaf.get_mut(i),
+                PickedLight::Environment => Some(&mut tree.environment_leaf),
+            };
+            if let Some(slot) = slot {
+                *slot = Some(k as u32);
+            }
+        }
+        tree
+    }
+
+    /// Appends the subtree over `order`'s entries, split at the median of their centres along
+    /// the widest axis, and returns its root's index.
+    fn build(
+        &mut self,
+        entries: &[(PickedLight, std::ops::Range<usize>, LightBounds)],
+        order: &mut [usize],
+        trail: u64,
+        depth: u32,
+    ) -> usize {
+        let bounds = order[1..]
+            .iter()
+            .fold(entries[order[0]].2, |u, &i| u.union(&entries[i].2));
+        let index = self.nodes.len();
+        if let [only] = order {
+            let (light, parts, _) = &entries[*only];
+            self.nodes.push(Node {
+                bounds,
+                kind: NodeKind::Leaf(self.leaves.len() as u32),
+            });
+            self.leaves.push(Leaf {
+                light: *light,
+                parts: parts.clone(),
+                trail,
+                depth,
+            });
+            return index;
+        }
+        let (lo, hi) = order
+            .iter()
+            .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), &i| {
+                let c = entries[i].2.centroid();
+                (lo.min(c), hi.max(c))
+            });
+        let axis = (hi - lo).max_position();
+        order.sort_by(|&a, &b| {
+            entries[a].2.centroid()[axis].total_cmp(&entries[b].2.centroid()[axis])
+        });
+        self.nodes.push(Node {
+            bounds,
+            kind: NodeKind::Interior(0),
+        });
+        let (first, second) = order.split_at_mut(order.len() / 2);
+        self.build(entries, first, trail, depth + 1);
+        let second_index = self.build(entries, second, trail | (1 << depth), depth + 1);
+        self.nodes[index].kind = NodeKind::Interior(second_index as u32);
+        index
+    }
+
+    /// The importance of node `i` at `x`: a leaf's is the sum of its parts'.
+    #[inline(always)]
+    fn node_importance(&self, i: usize, x: Vec3, n: Vec3) -> f32 {
+        let node = &self.nodes[i];
+        match node.kind {
+            NodeKind::Leaf(leaf) => self.leaves[leaf as usize]
+                .parts
+                .clone()
+                .map(|k| self.parts[k].importance(x, n))
+                .sum(),
+            NodeKind::Interior(_) => node.bounds.importance(x, n),
+        }
+    }
+
+    /// The tree's weight and the sum of every weight at the top level (the tree and the
+    /// emitters beside it).
+    #[inline(always)]
+    fn top_weights(&self, x: Vec3, n: Vec3) -> (f32, f32) {
+        let tree = if self.nodes.is_empty() {
+            0.0
+        } else {
+            self.node_importance(0, x, n)
+        };
+        let total = tree + self.infinite.iter().map(|e| e.importance(n)).sum::<f32>();
+        (tree, total)
+    }
+
+    /// Picks a light for a point `x` with normal `n` (facing the side light is gathered from),
+    /// by `u`: which, and the probability of picking it. `None` where no light can reach.
+    #[inline(always)]
+    pub fn pick(&self, u: f32, x: Vec3, n: Vec3) -> Option<(PickedLight, f32)> {
+        if let Some(only) = self.only {
+            return Some((only, 1.0));
+        }
+        let (tree, total) = self.top_weights(x, n);
+        if total.is_nan() || total <= 0.0 {
+            return None;
+        }
+        let mut u = u * total;
+        if u >= tree && total > tree {
+            // Beside the tree: the last with a weight takes what rounding leaves over.
+            u -= tree;
+            let mut picked = None;
+            for e in &self.infinite {
+                let w = e.importance(n);
+                if w > 0.0 {
+                    picked = Some(e.light());
+                    if u < w {
+                        break;
+                    }
+                }
+                u -= w;
+            }
+            let light = picked?;
+            return Some((light, self.probability(light, x, n)));
+        }
+        // Down the tree, each child by its share of the two, `u` stretched back to [0, 1); the
+        // product formed as `trail_probability` forms it, so that the two agree exactly.
+        let mut u = (u / tree).min(ONE_BELOW);
+        let mut p = 1.0;
+        let mut i = 0;
+        loop {
+            match self.nodes[i].kind {
+                NodeKind::Leaf(leaf) => {
+                    let light = self.leaves[leaf as usize].light;
+                    if light == PickedLight::Environment {
+                        // Its share beside the tree counts too.
+                        return Some((light, self.probability(light, x, n)));
+                    }
+                    let p = tree / total * p;
+                    return (p > 0.0).then_some((light, p));
+                }
+                NodeKind::Interior(second) => {
+                    let (a, b) = (i + 1, second as usize);
+                    let (pa, pb) = self.split(a, b, x, n);
+                    if u < pa {
+                        u = (u / pa).min(ONE_BELOW);
+                        p *= pa;
+                        i = a;
+                    } else {
+                        u = ((u - pa) / pb).min(ONE_BELOW);
+                        p *= pb;
+                        i = b;
+                    }
+                }
+            }
+        }
+    }
+
+    /// The shares of children `a` and `b` of a node at `x`: by importance, or halves where
+    /// both are 0. A node's bounds hold its children's, so it may be important at a point
+    /// where neither child is (a lamp's portals facing up and down, seen from beside the
+    /// shade); halves keep every pick reaching a leaf, so the probabilities sum to 1. The
+    /// light it reaches there sends no light (its bounds are conservative) and adds 0.
+    #[inline(always)]
+    fn split(&self, a: usize, b: usize, x: Vec3, n: Vec3) -> (f32, f32) {
+        let (ia, ib) = (self.node_importance(a, x, n), self.node_importance(b, x, n));
+        let sum = ia + ib;
+        if sum > 0.0 {
+            (ia / sum, ib / sum)
+        } else {
+            (0.5, 0.5)
+        }
+    }
+
+    /// The probability that [`Self::pick`] picks `light` at `x` with normal `n`.
+    #[inline(always)]
+    pub fn probability(&self, light: PickedLight, x: Vec3, n: Vec3) -> f32 {
+        if let Some(only) = self.only {
+            return if only == light { 1.0 } else { 0.0 };
+        }
+        let leaf = match light {
+            PickedLight::Area(i) => self.area_leaf.get(i).copied().flatten(),
+            PickedLight::Lamp(i) => self.lamp_leaf.get(i).copied().flatten(),
+            PickedLight::Environment => self.environment_leaf,
+        };
+        let (tree, total) = self.top_weights(x, n);
+        if total.is_nan() || total <= 0.0 {
+            return 0.0;
+        }
+        let mut p = 0.0;
+        if let Some(leaf) = leaf {
+            p += tree / total * self.trail_probability(leaf as usize, x, n);
+        }
+        for e in &self.infinite {
+            if e.light() == light {
+                p += e.importance(n) / total;
+            }
+        }
+        p
+    }
+
+    /// The probability of reaching leaf `leaf` from the root.
+    #[inline(always)]
+    fn trail_probability(&self, leaf: usize, x: Vec3, n: Vec3) -> f32 {
+        let Leaf { trail, depth, .. } = self.leaves[leaf];
+        let mut p = 1.0;
+        let mut i = 0;
+        for level in 0..depth {
+            let NodeKind::Interior(second) = self.nodes[i].kind else {
+                return 0.0;
+            };
+            let (a, b) = (i + 1, second as usize);
+            let (pa, pb) = self.split(a, b, x, n);
+            if trail & (1 << level) == 0 {
+                p *= pa;
+                i = a;
+            } else {
+                p *= pb;
+                i = b;
+            }
+        }
+        p
+    }
+
+    /// Every light the tree or the emitters beside it can pick, each once.
+    pub fn emitters(&self) -> impl Iterator<Item = PickedLight> + '_ {
+        let mut seen: Vec<PickedLight> = self.leaves.iter().map(|l| l.light).collect();
+        for e in &self.infinite {
+            if !seen.contains(&e.light()) {
+                seen.push(e.light());
+            }
+        }
+        seen.into_iter()
+    }
+
+    /// How many lights the tree holds (leaves) and how deep it is.
+    pub fn shape(&self) -> (usize, u32) {
+        (
+            self.leaves.len(),
+            self.leaves.iter().map(|l| l.depth).max().unwrap_or(0),
+        )
+    }
+}
+
+/// A portal as its light's light leaves it: from the portal's box, along the directions from
+/// the light to the portal, like a spot. Those directions `z − y` (`y` on the light, `z` on
+/// the portal) form a convex set, the difference of two convex hulls, whose directions are
+/// spanned by the differences of their vertices: the cone holding those holds them all.
+/// A point in front of the portal that cannot see the light through it (outside its
+/// antishadow, where the estimator draws nothing but its `alpha` share) gets 0 from it.
+fn portal_bounds(light: &AreaLight, polygon: &ConvexPolygon, intensity: f32) -> LightBounds {
+    let mut cone: Option<(Vec3, f32)> = None;
+    for y in light.corners() {
+        for &z in polygon.vertices() {
+            let w = (z - y).normalize_or_zero();
+            if w != Vec3::ZERO {
+                cone = Some(cone.map_or((w, 1.0), |k| cone_union(k, (w, 1.0))));
+            }
+        }
+    }
+    let hemisphere = polygon_bounds(polygon, intensity);
+    match cone {
+        // A spot at the portal: axis only, the light within the cone.
+        Some((axis, cos_cone)) if cos_cone > 0.0 => LightBounds {
+            axis,
+            cos_o: 1.0,
+            cos_e: cos_cone,
+            ..hemisphere
+        },
+        _ => hemisphere,
+    }
+}
+
+/// A portal or window as an emitter into its front: its box, its normal, a hemisphere.
+fn polygon_bounds(polygon: &ConvexPolygon, intensity: f32) -> LightBounds {
+    let (lo, hi) = polygon
+        .vertices()
+        .iter()
+        .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), &v| {
+            (lo.min(v), hi.max(v))
+        });
+    LightBounds {
+        lo,
+        hi,
+        axis: polygon.normal(),
+        cos_o: 1.0,
+        cos_e: 0.0,
+        intensity,
+        two_sided: false,
+        inside_only: false,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sampling::Rng;
+
+    fn unit(rng: &mut Rng) -> Vec3 {
+        let u = rng.uniform2();
+        let z = 1.0 - 2.0 * u.x;
+        let r = (1.0 - z * z).max(0.0).sqrt();
+        let (s, c) = (std::f32::consts::TAU * u.y).sin_cos();
+        Vec3::new(r * c, z, r * s)
+    }
+
+    /// The union of two cones holds every direction of both (directions on each cone's rim).
+    #[test]
+    fn cone_union_holds_both_cones() {
+        let mut rng = Rng::new(1, 2);
+        for _ in 0..2000 {
+            let cones = [0, 1].map(|_| (unit(&mut rng), 1.0 - 2.0 * rng.uniform()));
+            let (axis, cos_o) = cone_union(cones[0], cones[1]);
+            for (w, cos) in cones {
+                // A direction on the cone's rim.
+                let t = w.any_orthonormal_vector();
+                let sin = (1.0 - cos * cos).max(0.0).sqrt();
+                let (s, c) = (std::f32::consts::TAU * rng.uniform()).sin_cos();
+                let d = cos * w + sin * (c * t + s * w.cross(t));
+                assert!(axis.dot(d) >= cos_o - 1e-4, "{cones:?} → {axis}, {cos_o}");
+            }
+        }
+    }
+
+    /// The importance is positive wherever some point of the box sends light along a direction
+    /// of the emission cone to `x` from above its surface (a brute-force search over points of
+    /// the box and normals of the cone). The negative case: the same bound without the box's
+    /// spread (`θ_b` = 0) misses some of them.
+    #[test]
+    fn importance_is_zero_only_where_nothing_can_arrive() {
+        let mut rng = Rng::new(3, 4);
+        let mut checked = 0;
+        let mut missed_without_spread = 0;
+        for _ in 0..3000 {
+            let c = 2.0 * unit(&mut rng);
+            let half = Vec3::new(rng.uniform(), rng.uniform(), rng.uniform()) * 0.5;
+            let bounds = LightBounds {
+                lo: c - half,
+                hi: c + half,
+                axis: unit(&mut rng),
+                cos_o: 1.0 - 2.0 * rng.uniform() * rng.uniform(),
+                cos_e: rng.uniform() * 0.9,
+                intensity: 1.0,
+                two_sided: false,
+                inside_only: false,
+            };
+            let x = 3.0 * unit(&mut rng);
+            let n = unit(&mut rng);
+            // Brute force: a point of the box and a normal within θ_o of the axis from which
+            // the direction to x is within θ_e, above x's surface.
+            let arrives = (0..400).any(|_| {
+                let y = bounds.lo
+                    + (bounds.hi - bounds.lo)
+                        * Vec3::new(rng.uniform(), rng.uniform(), rng.uniform());
+                let w = (x - y).normalize();
+                // The normal of the cone closest to w.
+                let cos_w = bounds.axis.dot(w);
+                let theta = cos_w.clamp(-1.0, 1.0).acos() - bounds.cos_o.clamp(-1.0, 1.0).acos();
+                theta.max(0.0).cos() > bounds.cos_e && n.dot(-w) > 0.0
+            });
+            if arrives {
+                checked += 1;
+                assert!(bounds.importance(x, n) > 0.0, "{bounds:?} at {x}, {n}");
+                let point = LightBounds {
+                    lo: c,
+                    hi: c,
+                    ..bounds
+                };
+                if point.importance(x, n) == 0.0 {
+                    missed_without_spread += 1;
+                }
+            }
+        }
+        assert!(checked > 300, "{checked}");
+        assert!(missed_without_spread > 0);
+    }
+}

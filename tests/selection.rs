@@ -1,0 +1,325 @@
+//! Light selection (`docs/method.md` §10): the light tree's picks are a distribution at every
+//! point, the probability a pick reports is the one MIS evaluates, its bounds never drop a
+//! light that can reach a point, and images with the tree equal images by power.
+//!
+//! Release only: ray-traced statistical tests.
+
+mod common;
+
+use glam::Vec3;
+use portalview::asset::builtin;
+use portalview::light::estimator::{LightSampler, PickedLight};
+use portalview::light::tree::{LightBounds, LightTree, TreeLight, area_light_bounds};
+use portalview::light::{LightSet, Selection, Strategy};
+use portalview::render::film::Film;
+use portalview::render::integrator::{Integrator, RenderSettings};
+use portalview::render::render;
+use portalview::sampling::{Rng, SamplerKind};
+use portalview::scene::Scene;
+
+/// Every built-in scene, and two lights of different power over a floor.
+fn scenes() -> Vec<(String, Scene)> {
+    let mut scenes: Vec<(String, Scene)> = builtin::NAMES
+        .iter()
+        .map(|&name| (name.to_owned(), Scene::open(name).unwrap()))
+        .collect();
+    scenes.push((
+        "two lights".to_owned(),
+        Scene::from_desc(common::two_lights(), "two lights").unwrap(),
+    ));
+    scenes
+}
+
+/// The scene's bounding box, from its triangles.
+fn bounds(scene: &Scene) -> (Vec3, Vec3) {
+    scene
+        .geometry
+        .triangles
+        .iter()
+        .flat_map(|t| t.p)
+        .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), p| {
+            (lo.min(p), hi.max(p))
+        })
+}
+
+/// A uniform unit vector.
+fn unit(rng: &mut Rng) -> Vec3 {
+    let u = rng.uniform2();
+    let z = 1.0 - 2.0 * u.x;
+    let r = (1.0 - z * z).max(0.0).sqrt();
+    let (s, c) = (std::f32::consts::TAU * u.y).sin_cos();
+    Vec3::new(r * c, z, r * s)
+}
+
+/// Every light a scene has, as the pick names them.
+fn emitters(scene: &Scene) -> Vec<PickedLight> {
+    (0..scene.lights().len())
+        .map(PickedLight::Area)
+        .chain((0..scene.lamps().len()).map(PickedLight::Lamp))
+        .chain(scene.environment().map(|_| PickedLight::Environment))
+        .collect()
+}
+
+/// At random points and normals in every scene, for every strategy: the probabilities of
+/// all lights sum to 1 (or all are 0, where no light can reach and the pick returns none);
+/// the probability a pick returns is exactly the one evaluated for that light (MIS relies on
+/// it); and the picks' frequencies follow the probabilities. The frequency test's tolerance
+/// is 5 standard errors of a multinomial count, `√(N p (1 − p))`, plus one count.
+#[test]
+fn tree_picks_are_a_distribution_that_matches_its_probabilities() {
+    for (name, scene) in scenes() {
+        let (lo, hi) = bounds(&scene);
+        let all = emitters(&scene);
+        for strategy in Strategy::ALL {
+            let sampler = LightSampler::with_selection(&scene, strategy, None, Selection::Tree);
+            let mut rng = Rng::new(17, 3);
+            for _ in 0..40 {
+                let x = lo + (hi - lo) * Vec3::new(rng.uniform(), rng.uniform(), rng.uniform());
+                let n = unit(&mut rng);
+                let p: Vec<f32> = all.iter().map(|&l| sampler.probability(l, x, n)).collect();
+                let total: f32 = p.iter().sum();
+                assert!(
+                    total == 0.0 || (total - 1.0).abs() < 1e-5,
+                    "{name} {}: probabilities sum to {total} at {x}",
+                    strategy.name()
+                );
+                let picks = 4000;
+                let mut counts = vec![0usize; all.len()];
+                for k in 0..picks {
+                    let u = (k as f32 + rng.uniform()) / picks as f32;
+                    let Some((light, q)) = sampler.pick(u, x, n) else {
+                        assert_eq!(total, 0.0, "{name}: no pick where lights reach {x}");
+                        continue;
+                    };
+                    let i = all.iter().position(|&l| l == light).unwrap();
+                    assert_eq!(q, p[i], "{name}: the pick's probability at {x}");
+                    counts[i] += 1;
+                }
+                if total == 0.0 {
+                    continue;
+                }
+                for (i, &c) in counts.iter().enumerate() {
+                    let expected = picks as f64 * f64::from(p[i]);
+                    let se = (expected * (1.0 - f64::from(p[i]))).sqrt();
+                    assert!(
+                        (c as f64 - expected).abs() <= 5.0 * se + 1.0,
+                        "{name} {}: {:?} picked {c} times of {picks}, p = {}",
+                        strategy.name(),
+                        all[i],
+                        p[i]
+                    );
+                }
+            }
+        }
+    }
+}
+
+/// The tree never drops a light that can reach a point: wherever a point on a light sends it
+/// light unoccluded (from the light's emitting side, above the point's surface), the light's
+/// probability there is positive, under every strategy and alpha. With alpha 0 the estimator
+/// itself draws nothing outside the portals, so there only paths through one of the light's
+/// portals count; a sky direction likewise through a window. Half the points are drawn in the
+/// scene's box, half on rays from the light through one of its portals (or in through a
+/// window), where the portals' bounds alone must keep the light.
+#[test]
+fn tree_bounds_keep_every_light_that_reaches_a_point() {
+    for (name, scene) in scenes() {
+        let (lo, hi) = bounds(&scene);
+        let bvh = &scene.geometry.bvh;
+        for (strategy, alpha) in [
+            (Strategy::Light, None),
+            (Strategy::Antishadow, None),
+            (Strategy::Antishadow, Some(0.0)),
+        ] {
+            let sampler = LightSampler::with_selection(&scene, strategy, alpha, Selection::Tree);
+            let mut rng = Rng::new(23, 5);
+            let mut reached = 0;
+            for k in 0..4000 {
+                let in_box =
+                    lo + (hi - lo) * Vec3::new(rng.uniform(), rng.uniform(), rng.uniform());
+                let n = unit(&mut rng);
+                for (i, light) in scene.lights().iter().enumerate() {
+                    let Some(y) = light.sample_point(rng.uniform2()) else {
+                        continue;
+                    };
+                    let portals: Vec<_> = scene.portals.iter().filter(|p| p.light == i).collect();
+                    let x = match portals.get(k % 4) {
+                        Some(portal) if k % 2 == 0 => {
+                            let z = portal.polygon.sample_uniform(rng.uniform2());
+                            z + (z - y.p).normalize() * 3.0 * rng.uniform()
+                        }
+                        _ => in_box,
+                    };
+                    let v = y.p - x;
+                    let (dist, w) = (v.length(), v.normalize());
+                    let emits = light.double_sided || y.n.dot(-w) > 0.0;
+                    if !emits || n.dot(w) <= 0.0 || bvh.occluded(x, w, 1e-4, dist * (1.0 - 1e-3)) {
+                        continue;
+                    }
+                    let through_portal =
+                        portals.iter().any(|p| p.polygon.intersect(x, w).is_some());
+                    if alpha == Some(0.0) && !through_portal {
+                        continue;
+                    }
+                    reached += 1;
+                    assert!(
+                        sampler.light_probability(i, x, n) > 0.0,
+                        "{name} {}: light {i} reaches {x} from {} but is never picked",
+                        strategy.name(),
+                        y.p
+                    );
+                }
+                if let Some(environment) = scene.environment() {
+                    let w = unit(&mut rng);
+                    let x = match scene.windows.get(k % 4) {
+                        Some(window) if k % 2 == 0 => {
+                            let z = window.polygon.sample_uniform(rng.uniform2());
+                            z - w * 3.0 * rng.uniform()
+                        }
+                        _ => in_box,
+                    };
+                    let through_window = scene.windows.iter().any(|win| {
+                        win.polygon.intersect(x, w).is_some() && win.polygon.normal().dot(w) < 0.0
+                    });
+                    let lit = environment.radiance(w) != Vec3::ZERO
+                        && n.dot(w) > 0.0
+                        && !bvh.occluded(x, w, 1e-4, f32::INFINITY);
+                    if lit && (alpha != Some(0.0) || through_window) {
+                        reached += 1;
+                        assert!(
+                            sampler.environment_probability(x, n) > 0.0,
+                            "{name} {}: the sky reaches {x} along {w} but is never picked",
+                            strategy.name()
+                        );
+                    }
+                }
+            }
+            assert!(reached > 50, "{name}: only {reached} reaching pairs");
+        }
+    }
+}
+
+/// An image with one path vertex after the camera; independent samples, for block z-scores.
+fn render_image(scene: &Scene, lights: Option<LightSampler>, settings: RenderSettings) -> Film {
+    let integrator = match lights {
+        Some(lights) => Integrator::with_lights(scene, settings, lights),
+        None => Integrator::new(scene, settings),
+    };
+    let (film, stats) = render(&integrator, 48, 36, settings_spp(scene));
+    assert_eq!(stats.nonfinite, 0);
+    film
+}
+
+/// Samples per pixel: enough that a 3% error moves the scale statistic well past its bound.
+fn settings_spp(scene: &Scene) -> u32 {
+    if scene.lights().len() > 4 { 512 } else { 256 }
+}
+
+fn settings(strategy: Strategy, selection: Selection, seed: u64) -> RenderSettings {
+    RenderSettings {
+        strategy,
+        selection,
+        seed,
+        max_depth: 1,
+        sampler: SamplerKind::Independent,
+        ..RenderSettings::default()
+    }
+}
+
+/// The scenes with more than one light to pick from: where the tree can change the image.
+fn many_light_scenes() -> Vec<(String, Scene)> {
+    scenes()
+        .into_iter()
+        .filter(|(_, s)| emitters(s).len() > 1)
+        .collect()
+}
+
+/// Every strategy with the tree gives the image power selection gives, and light sampling's
+/// (by power): per-block z-scores (`common::assert_agrees`), whose negative case shows a 3%
+/// scale error is detected.
+#[test]
+fn images_with_the_tree_equal_images_by_power() {
+    for (name, scene) in many_light_scenes() {
+        let light_by_power =
+            render_image(&scene, None, settings(Strategy::Light, Selection::Power, 1));
+        for (k, strategy) in Strategy::ALL.into_iter().enumerate() {
+            let seed = 10 + k as u64;
+            let tree = render_image(&scene, None, settings(strategy, Selection::Tree, seed));
+            let power = render_image(
+                &scene,
+                None,
+                settings(strategy, Selection::Power, seed + 100),
+            );
+            let label = format!("{name} {}", strategy.name());
+            common::assert_agrees(&format!("{label} tree vs power"), &tree, &power, k == 0);
+            common::assert_agrees(
+                &format!("{label} tree vs light"),
+                &tree,
+                &light_by_power,
+                false,
+            );
+        }
+    }
+}
+
+/// The negative case: a tree whose bounds drop a light at some points (the second light's
+/// part faces up, away from the floor it lights) gives a darker image, and the same test
+/// rejects it.
+#[test]
+fn a_tree_that_drops_a_light_is_detected() {
+    let scene = Scene::from_desc(common::two_lights(), "two lights").unwrap();
+    let lights: Vec<TreeLight> = scene
+        .lights()
+        .iter()
+        .enumerate()
+        .map(|(i, light)| {
+            let mut part = area_light_bounds(light, 1.0);
+            if i == 1 {
+                part = LightBounds {
+                    axis: Vec3::Y,
+                    cos_o: 1.0,
+                    cos_e: 0.0,
+                    ..part
+                };
+            }
+            TreeLight {
+                light: PickedLight::Area(i),
+                parts: vec![part],
+            }
+        })
+        .collect();
+    let wrong = LightTree::from_parts(lights, scene.lights().len(), 0);
+    let strategy = Strategy::Antishadow;
+    let dropped = LightSampler::with_tree(&scene, strategy, None, wrong);
+    let image = render_image(
+        &scene,
+        Some(dropped),
+        settings(strategy, Selection::Tree, 3),
+    );
+    let power = render_image(&scene, None, settings(strategy, Selection::Power, 4));
+    let blocks = common::block_differences(&image, &power, 6, 1.0);
+    assert!(
+        !common::consistent(&blocks),
+        "a dropped light went undetected"
+    );
+    // The correct tree over the same scene passes.
+    let right = render_image(&scene, None, settings(strategy, Selection::Tree, 3));
+    common::assert_agrees("two lights, right tree", &right, &power, false);
+}
+
+/// A scene with one light picks it with probability 1 everywhere: its images with the tree are
+/// those by power, sample for sample.
+#[test]
+fn single_light_images_are_unchanged() {
+    for name in ["lampshade", "fig8a", "fig8b", "fig8c", "window"] {
+        let scene = Scene::open(name).unwrap();
+        assert_eq!(emitters(&scene).len(), 1, "{name}");
+        for strategy in Strategy::ALL {
+            let [tree, power] = [Selection::Tree, Selection::Power].map(|selection| {
+                let integrator = Integrator::new(&scene, settings(strategy, selection, 5));
+                render(&integrator, 24, 18, 4).0.mean()
+            });
+            assert_eq!(tree, power, "{name} {}", strategy.name());
+        }
+    }
+}
