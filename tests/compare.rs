@@ -297,6 +297,54 @@ fn figure8_writes_its_table_for_every_scene() {
     let _ = std::fs::remove_dir_all(&root);
 }
 
+/// `--light-selection power,tree` renders every strategy with each selection against one
+/// reference, side by side: each selection's runs in its own folder, every run given the same
+/// pass time. Negative case: a selection listed twice is an error.
+#[test]
+fn compare_renders_two_light_selections_side_by_side() {
+    let _serial = serial();
+    let root = temp_dir("selections");
+    let (out, cache) = (root.join("out"), root.join("cache"));
+    run_compare(
+        &out,
+        &cache,
+        &[
+            ("--scene", "desklamp"),
+            ("--runs", "2"),
+            ("--strategies", "light,antishadow"),
+            ("--light-selection", "power,tree"),
+            ("--seconds", "0.1"),
+        ],
+    );
+    for selection in ["power", "tree"] {
+        let md = std::fs::read_to_string(out.join(selection).join("runs.md")).unwrap();
+        assert!(md.contains("over 2 runs: desklamp"), "{selection}: {md}");
+        let (_, rows) = read_csv(&out.join(selection).join("runs.csv"));
+        assert_eq!(rows.len(), 4, "{selection}: {rows:?}");
+        for r in &rows {
+            let seconds: f64 = r[3].parse().unwrap();
+            // Each run stops at the first pass past 0.1 s; passes here take milliseconds.
+            assert!((0.1..0.2).contains(&seconds), "{selection}: {r:?}");
+        }
+    }
+    let cli = Cli::try_parse_from([
+        "portalview",
+        "compare",
+        "--scene",
+        "desklamp",
+        "--seconds",
+        "0.1",
+        "--light-selection",
+        "tree,tree",
+        "--out",
+        &out.display().to_string(),
+    ])
+    .unwrap();
+    let err = run(cli.command.unwrap()).unwrap_err();
+    assert!(err.to_string().contains("twice"), "{err}");
+    let _ = std::fs::remove_dir_all(&root);
+}
+
 /// This checks the scheduling, not the strategies' speed: whatever each pass costs, every
 /// strategy's accumulated pass time must end within one pass of the others'.
 #[test]

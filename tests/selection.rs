@@ -14,7 +14,7 @@ use portalview::light::{LightSet, Selection, Strategy};
 use portalview::render::film::Film;
 use portalview::render::integrator::{Integrator, RenderSettings};
 use portalview::render::render;
-use portalview::sampling::{Rng, SamplerKind};
+use portalview::sampling::{Rng, SamplerKind, sample_uniform_sphere};
 use portalview::scene::Scene;
 
 /// Every built-in scene, and two lights of different power over a floor.
@@ -44,11 +44,7 @@ fn bounds(scene: &Scene) -> (Vec3, Vec3) {
 
 /// A uniform unit vector.
 fn unit(rng: &mut Rng) -> Vec3 {
-    let u = rng.uniform2();
-    let z = 1.0 - 2.0 * u.x;
-    let r = (1.0 - z * z).max(0.0).sqrt();
-    let (s, c) = (std::f32::consts::TAU * u.y).sin_cos();
-    Vec3::new(r * c, z, r * s)
+    sample_uniform_sphere(rng.uniform2())
 }
 
 /// Every light a scene has, as the pick names them.

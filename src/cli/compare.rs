@@ -27,7 +27,7 @@ pub struct CompareArgs {
     pub strategies: Vec<Strategy>,
     /// How the compared renders pick lights, comma-separated: with two, every strategy is
     /// rendered with each, side by side at equal time, each selection's files in
-    /// --out/SELECTION, and the efficiency of the tree over power printed per strategy.
+    /// --out/SELECTION, and the efficiency of the second over the first printed per strategy.
     #[arg(long, value_enum, value_delimiter = ',', default_values_t = [Selection::Tree])]
     pub light_selection: Vec<Selection>,
     /// Pass render time per strategy, in seconds (the whole run takes this times the number
@@ -92,6 +92,10 @@ pub fn run(args: &CompareArgs) -> Result<()> {
     anyhow::ensure!(
         !args.light_selection.is_empty(),
         "--light-selection lists none"
+    );
+    anyhow::ensure!(
+        !args.figure8 || args.light_selection.len() == 1,
+        "--figure8 takes one --light-selection"
     );
     for (i, s) in args.light_selection.iter().enumerate() {
         anyhow::ensure!(

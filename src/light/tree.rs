@@ -801,14 +801,10 @@ fn polygon_bounds(polygon: &ConvexPolygon, intensity: f32) -> LightBounds {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::sampling::Rng;
+    use crate::sampling::{Rng, sample_uniform_sphere};
 
     fn unit(rng: &mut Rng) -> Vec3 {
-        let u = rng.uniform2();
-        let z = 1.0 - 2.0 * u.x;
-        let r = (1.0 - z * z).max(0.0).sqrt();
-        let (s, c) = (std::f32::consts::TAU * u.y).sin_cos();
-        Vec3::new(r * c, z, r * s)
+        sample_uniform_sphere(rng.uniform2())
     }
 
     /// The union of two cones holds every direction of both (directions on each cone's rim).

@@ -289,6 +289,18 @@ impl Frame {
     }
 }
 
+/// A uniform direction on the unit sphere (pdf [`UNIFORM_SPHERE_PDF`]).
+#[inline(always)]
+pub fn sample_uniform_sphere(u: Vec2) -> Vec3 {
+    let z = 1.0 - 2.0 * u.x;
+    let r = (1.0 - z * z).max(0.0).sqrt();
+    let (s, c) = (std::f32::consts::TAU * u.y).sin_cos();
+    Vec3::new(r * c, z, r * s)
+}
+
+/// The solid-angle pdf of [`sample_uniform_sphere`].
+pub const UNIFORM_SPHERE_PDF: f32 = 1.0 / (4.0 * std::f32::consts::PI);
+
 /// Cosine-weighted hemisphere around +z (Malley's method on a concentric disk).
 #[inline(always)]
 pub fn sample_cosine_hemisphere(u: Vec2) -> Vec3 {

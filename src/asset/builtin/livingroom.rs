@@ -7,11 +7,10 @@
 //! portal; the lights' powers span 20×.
 
 use glam::{Vec2, Vec3};
-use std::sync::Arc;
 
-use super::{Builder, cuboid_faces, facing, hash01, rect_y, rectangle_less_hole, sky_image};
+use super::{Builder, cuboid_faces, facing, generated_sky, hash01, rect_y, rectangle_less_hole};
 use crate::asset::desc::{MaterialDesc, SceneDesc};
-use crate::asset::environment::{ENVIRONMENT_TARGET, EnvMap, EnvironmentDesc, Interpolation};
+use crate::asset::environment::{ENVIRONMENT_TARGET, Interpolation};
 
 /// The room: x in [−W, W], z in [−D, D], y in [0, H].
 const W: f32 = 5.0;
@@ -150,15 +149,7 @@ pub(super) fn livingroom() -> SceneDesc {
 
     let corners: Vec<Vec3> = WINDOW.iter().map(|p| Vec3::new(p.x, p.y, -D)).collect();
     b.portal("window", ENVIRONMENT_TARGET, &facing(corners, Vec3::Z));
-    b.desc.environment = Some(EnvironmentDesc {
-        map: EnvMap::Image {
-            file: None,
-            image: Arc::new(sky_image()),
-        },
-        strength: 1.0,
-        rotation_degrees: 0.0,
-        interpolation: Interpolation::Linear,
-    });
+    b.desc.environment = Some(generated_sky(Interpolation::Linear));
     b.camera(Vec3::new(3.7, 1.6, 3.5), Vec3::new(-1.0, 0.9, -1.8), 60.0);
     b.desc
 }
