@@ -74,6 +74,11 @@ fn tree_picks_are_a_distribution_that_matches_its_probabilities() {
                 let n = unit(&mut rng);
                 let p: Vec<f32> = all.iter().map(|&l| sampler.probability(l, x, n)).collect();
                 let total: f32 = p.iter().sum();
+                // The one walk over the tree gives each light's probability, to the last bit.
+                for (light, q) in sampler.tree().probabilities(x, n) {
+                    let i = all.iter().position(|&l| l == light).unwrap();
+                    assert_eq!(q, p[i], "{name}: {light:?} at {x}");
+                }
                 assert!(
                     total == 0.0 || (total - 1.0).abs() < 1e-5,
                     "{name} {}: probabilities sum to {total} at {x}",

@@ -729,15 +729,45 @@ impl LightTree {
         p
     }
 
-    /// Every light the tree or the emitters beside it can pick, each once.
-    pub fn emitters(&self) -> impl Iterator<Item = PickedLight> + '_ {
-        let mut seen: Vec<PickedLight> = self.leaves.iter().map(|l| l.light).collect();
-        for e in &self.infinite {
-            if !seen.contains(&e.light()) {
-                seen.push(e.light());
+    /// The probability of every light the tree or the emitters beside it can pick, at `x`
+    /// with normal `n`: [`Self::probability`] for each, in one walk over the tree (each node's
+    /// split computed once, where the lights' trails would compute it once per light).
+    pub fn probabilities(&self, x: Vec3, n: Vec3) -> Vec<(PickedLight, f32)> {
+        let mut out: Vec<(PickedLight, f32)> = Vec::new();
+        if let Some(only) = self.only {
+            out.push((only, 1.0));
+            return out;
+        }
+        let (tree, total) = self.top_weights(x, n);
+        if total.is_nan() || total <= 0.0 {
+            return out;
+        }
+        // Depth first, each node with the probability of reaching it.
+        let mut stack: Vec<(usize, f32)> = Vec::new();
+        if !self.nodes.is_empty() {
+            stack.push((0, 1.0));
+        }
+        while let Some((i, p)) = stack.pop() {
+            match self.nodes[i].kind {
+                NodeKind::Leaf(leaf) => {
+                    out.push((self.leaves[leaf as usize].light, tree / total * p));
+                }
+                NodeKind::Interior(second) => {
+                    let (a, b) = (i + 1, second as usize);
+                    let (pa, pb) = self.split(a, b, x, n);
+                    stack.push((b, p * pb));
+                    stack.push((a, p * pa));
+                }
             }
         }
-        seen.into_iter()
+        for e in &self.infinite {
+            let p = e.importance(n) / total;
+            match out.iter_mut().find(|(light, _)| *light == e.light()) {
+                Some((_, q)) => *q += p,
+                None => out.push((e.light(), p)),
+            }
+        }
+        out
     }
 
     /// How many lights the tree holds (leaves) and how deep it is.

@@ -120,8 +120,9 @@ pub const SPREAD_SHARE: f32 = 0.9;
 pub fn lights_for_share(sampler: &LightSampler, x: Vec3, n: Vec3, share: f32) -> Option<u32> {
     let mut p: Vec<f32> = sampler
         .tree()
-        .emitters()
-        .map(|light| sampler.probability(light, x, n))
+        .probabilities(x, n)
+        .into_iter()
+        .map(|(_, p)| p)
         .filter(|&p| p > 0.0)
         .collect();
     let total: f32 = p.iter().sum();
