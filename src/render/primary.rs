@@ -4,6 +4,7 @@
 
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 use super::integrator::Integrator;
 use crate::light::antishadow::Region;
@@ -40,6 +41,31 @@ impl PrimaryBuffer {
     /// classifier instead of the precomputed planes (a debug view: slower, and the two must
     /// agree except within a hair of the planes).
     pub fn compute(scene: &Scene, width: u32, height: u32, brute_force: bool) -> PrimaryBuffer {
+        let never = AtomicBool::new(false);
+        Self::compute_cancellable(scene, width, height, brute_force, &never).unwrap_or_else(|| {
+            // Never cancelled; an empty buffer all the same rather than a panic.
+            PrimaryBuffer {
+                width: 0,
+                height: 0,
+                portal_count: 0,
+                regions: Vec::new(),
+                combined: Vec::new(),
+                technique: Vec::new(),
+                points: Vec::new(),
+                spread: Vec::new(),
+            }
+        })
+    }
+
+    /// [`Self::compute`], given up (`None`) as soon as `cancel` is set: in a room of many
+    /// lights and portals it takes seconds, and a camera move must not wait for it.
+    pub fn compute_cancellable(
+        scene: &Scene,
+        width: u32,
+        height: u32,
+        brute_force: bool,
+        cancel: &AtomicBool,
+    ) -> Option<PrimaryBuffer> {
         let sampler = LightSampler::new(scene, Strategy::Antishadow, None);
         let sky = SkySampler::new(scene, Strategy::Antishadow, None);
         let portal_count = scene.portals.len() + scene.windows.len();
@@ -47,6 +73,9 @@ impl PrimaryBuffer {
         let rows: Vec<Vec<PixelClass>> = (0..height)
             .into_par_iter()
             .map(|y| {
+                if cancel.load(Ordering::Relaxed) {
+                    return Vec::new();
+                }
                 (0..width)
                     .map(|x| {
                         let ndc = (Vec2::new(x as f32, y as f32) + 0.5)
@@ -56,6 +85,9 @@ impl PrimaryBuffer {
                     .collect()
             })
             .collect();
+        if cancel.load(Ordering::Relaxed) {
+            return None;
+        }
         let n = (width * height) as usize;
         let mut buffer = PrimaryBuffer {
             width,
@@ -74,7 +106,7 @@ impl PrimaryBuffer {
             buffer.combined.push(combined);
             buffer.technique.push(technique);
         }
-        buffer
+        Some(buffer)
     }
 
     /// The region of pixel `i` for `portal` (or combined when `None`).
@@ -215,4 +247,21 @@ fn classify_ray(
     let (combined, technique) = best.map_or((None, None), |(_, r, t)| (Some(r), t));
     let spread = lights_for_share(sampler, x, n, SPREAD_SHARE);
     (Some(p), regions, combined, technique, spread)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A set cancel flag gives the classification up; a clear one gives what `compute` gives.
+    #[test]
+    fn classification_gives_up_when_cancelled() {
+        let scene = Scene::open("lampshade").unwrap();
+        let cancelled = AtomicBool::new(true);
+        assert!(PrimaryBuffer::compute_cancellable(&scene, 16, 12, false, &cancelled).is_none());
+        let clear = AtomicBool::new(false);
+        let buffer = PrimaryBuffer::compute_cancellable(&scene, 16, 12, false, &clear).unwrap();
+        assert_eq!(buffer, PrimaryBuffer::compute(&scene, 16, 12, false));
+        assert_eq!(buffer.spread.len(), 16 * 12);
+    }
 }

@@ -141,7 +141,13 @@ impl Job {
         if job.preview_done && job.primary.is_none() {
             let (scene, w, h) = (&request.scene, job.film.width, job.film.height);
             let brute_force = request.brute_force_regions;
-            let primary = out.install(|| PrimaryBuffer::compute(scene, w, h, brute_force));
+            let cancel = out.cancel();
+            let primary = out
+                .install(|| PrimaryBuffer::compute_cancellable(scene, w, h, brute_force, cancel));
+            let Some(primary) = primary else {
+                // A newer request arrived: it is handled on the next turn.
+                return Ok(());
+            };
             job.primary = Some(Arc::new(primary));
         }
         let request = &job.request;
