@@ -30,18 +30,6 @@ fn scenes() -> Vec<(String, Scene)> {
     scenes
 }
 
-/// The scene's bounding box, from its triangles.
-fn bounds(scene: &Scene) -> (Vec3, Vec3) {
-    scene
-        .geometry
-        .triangles
-        .iter()
-        .flat_map(|t| t.p)
-        .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), p| {
-            (lo.min(p), hi.max(p))
-        })
-}
-
 /// A uniform unit vector.
 fn unit(rng: &mut Rng) -> Vec3 {
     sample_uniform_sphere(rng.uniform2())
@@ -64,7 +52,7 @@ fn emitters(scene: &Scene) -> Vec<PickedLight> {
 #[test]
 fn tree_picks_are_a_distribution_that_matches_its_probabilities() {
     for (name, scene) in scenes() {
-        let (lo, hi) = bounds(&scene);
+        let (lo, hi) = scene.geometry.bounds;
         let all = emitters(&scene);
         for strategy in Strategy::ALL {
             let sampler = LightSampler::with_selection(&scene, strategy, None, Selection::Tree);
@@ -125,7 +113,7 @@ fn tree_picks_are_a_distribution_that_matches_its_probabilities() {
 #[test]
 fn tree_bounds_keep_every_light_that_reaches_a_point() {
     for (name, scene) in scenes() {
-        let (lo, hi) = bounds(&scene);
+        let (lo, hi) = scene.geometry.bounds;
         let bvh = &scene.geometry.bvh;
         for (strategy, alpha) in [
             (Strategy::Light, None),

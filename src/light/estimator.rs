@@ -20,6 +20,7 @@ use super::antishadow::Region;
 use super::area::{AreaLight, LightPoint};
 use super::portal::Portal;
 use super::punctual::Lamp;
+use super::sky::windows_alpha;
 use super::tree::{LightTree, TreeInputs};
 use super::{LightSet, Selection, Strategy, Technique, split_share};
 use crate::sampling::polygon::{
@@ -231,18 +232,15 @@ impl LightSampler {
             })
             .collect::<Vec<f32>>();
         let tree = match selection {
-            Selection::Tree => {
-                let windows = scene.windows().iter().map(|w| w.alpha).fold(0.0, f32::max);
-                LightTree::new(
-                    scene,
-                    &TreeInputs {
-                        portal_aware: strategy != Strategy::Light,
-                        portals_of: &portals_of,
-                        alpha_of: &alpha_of,
-                        environment_alpha: alpha_override.unwrap_or(windows).clamp(0.0, 1.0),
-                    },
-                )
-            }
+            Selection::Tree => LightTree::new(
+                scene,
+                &TreeInputs {
+                    portal_aware: strategy != Strategy::Light,
+                    portals_of: &portals_of,
+                    alpha_of: &alpha_of,
+                    environment_alpha: windows_alpha(scene, alpha_override),
+                },
+            ),
             Selection::Power => LightTree::default(),
         };
         LightSampler {
@@ -272,14 +270,9 @@ impl LightSampler {
     ) -> Self {
         LightSampler {
             tree,
+            selection: Selection::Tree,
             ..Self::with_selection(scene, strategy, alpha_override, Selection::Power)
         }
-        .picking_by_tree()
-    }
-
-    fn picking_by_tree(mut self) -> Self {
-        self.selection = Selection::Tree;
-        self
     }
 
     /// How lights are picked.
@@ -329,11 +322,6 @@ impl LightSampler {
 
     /// The probability of picking the environment at `x` with normal `n` (0 without one).
     pub fn environment_probability(&self, x: Vec3, n: Vec3) -> f32 {
-        if self.selection == Selection::Power
-            && self.by_power.len() == self.area_lights + self.lamps
-        {
-            return 0.0;
-        }
         self.probability(PickedLight::Environment, x, n)
     }
 

@@ -137,6 +137,12 @@ pub struct SkySample {
     pub technique_pdf: f32,
 }
 
+/// The environment's alpha: the largest of its windows' (0 without windows), or the override.
+pub fn windows_alpha(scene: &impl LightSet, alpha_override: Option<f32>) -> f32 {
+    let authored = scene.windows().iter().map(|w| w.alpha).fold(0.0, f32::max);
+    alpha_override.unwrap_or(authored).clamp(0.0, 1.0)
+}
+
 /// Samples the environment through the scene's windows under one strategy.
 #[derive(Clone, Debug)]
 pub struct SkySampler {
@@ -147,10 +153,9 @@ pub struct SkySampler {
 impl SkySampler {
     /// `alpha_override` replaces every window's alpha.
     pub fn new(scene: &impl LightSet, strategy: Strategy, alpha_override: Option<f32>) -> Self {
-        let authored = scene.windows().iter().map(|w| w.alpha).fold(0.0, f32::max);
         SkySampler {
             strategy,
-            alpha: alpha_override.unwrap_or(authored).clamp(0.0, 1.0),
+            alpha: windows_alpha(scene, alpha_override),
         }
     }
 

@@ -242,7 +242,7 @@ pub fn flux_through(light: &AreaLight, portal: &ConvexPolygon) -> f32 {
             continue;
         };
         for j in 0..N {
-            let z = portal.sample_uniform(hammersley((j * 7 + i) % N, N));
+            let z = portal.sample_uniform(hammersley(j, N));
             let v = z - y.p;
             let r2 = v.length_squared();
             if r2 <= 0.0 {
@@ -378,6 +378,21 @@ pub struct TreeInputs<'a> {
 impl LightTree {
     /// The tree over `scene`'s lights.
     pub fn new(scene: &impl LightSet, inputs: &TreeInputs) -> Self {
+        // One emitter: nothing to bound (a renderer builds this per pass; the flux and sky
+        // integrals below would cost a window scene a millisecond each time).
+        let emitters = scene.lights().len() + scene.lamps().len();
+        let only = match (emitters, scene.environment()) {
+            (1, None) if scene.lamps().is_empty() => Some(PickedLight::Area(0)),
+            (1, None) => Some(PickedLight::Lamp(0)),
+            (0, Some(_)) => Some(PickedLight::Environment),
+            _ => None,
+        };
+        if only.is_some() {
+            return LightTree {
+                only,
+                ..LightTree::default()
+            };
+        }
         let mut lights: Vec<TreeLight> = Vec::new();
         let mut infinite = Vec::new();
         for (i, light) in scene.lights().iter().enumerate() {

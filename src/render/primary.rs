@@ -41,20 +41,8 @@ impl PrimaryBuffer {
     /// classifier instead of the precomputed planes (a debug view: slower, and the two must
     /// agree except within a hair of the planes).
     pub fn compute(scene: &Scene, width: u32, height: u32, brute_force: bool) -> PrimaryBuffer {
-        let never = AtomicBool::new(false);
-        Self::compute_cancellable(scene, width, height, brute_force, &never).unwrap_or_else(|| {
-            // Never cancelled; an empty buffer all the same rather than a panic.
-            PrimaryBuffer {
-                width: 0,
-                height: 0,
-                portal_count: 0,
-                regions: Vec::new(),
-                combined: Vec::new(),
-                technique: Vec::new(),
-                points: Vec::new(),
-                spread: Vec::new(),
-            }
-        })
+        let rows = classified_rows(scene, width, height, brute_force, None);
+        Self::from_rows(scene, width, height, rows)
     }
 
     /// [`Self::compute`], given up (`None`) as soon as `cancel` is set: in a room of many
@@ -66,28 +54,13 @@ impl PrimaryBuffer {
         brute_force: bool,
         cancel: &AtomicBool,
     ) -> Option<PrimaryBuffer> {
-        let sampler = LightSampler::new(scene, Strategy::Antishadow, None);
-        let sky = SkySampler::new(scene, Strategy::Antishadow, None);
+        let rows = classified_rows(scene, width, height, brute_force, Some(cancel));
+        (!cancel.load(Ordering::Relaxed)).then(|| Self::from_rows(scene, width, height, rows))
+    }
+
+    /// The buffer of the classified pixels, row by row.
+    fn from_rows(scene: &Scene, width: u32, height: u32, rows: Vec<Vec<PixelClass>>) -> Self {
         let portal_count = scene.portals.len() + scene.windows.len();
-        let aspect = width as f32 / height as f32;
-        let rows: Vec<Vec<PixelClass>> = (0..height)
-            .into_par_iter()
-            .map(|y| {
-                if cancel.load(Ordering::Relaxed) {
-                    return Vec::new();
-                }
-                (0..width)
-                    .map(|x| {
-                        let ndc = (Vec2::new(x as f32, y as f32) + 0.5)
-                            / Vec2::new(width as f32, height as f32);
-                        classify_ray(scene, (&sampler, &sky), ndc, aspect, brute_force)
-                    })
-                    .collect()
-            })
-            .collect();
-        if cancel.load(Ordering::Relaxed) {
-            return None;
-        }
         let n = (width * height) as usize;
         let mut buffer = PrimaryBuffer {
             width,
@@ -106,7 +79,7 @@ impl PrimaryBuffer {
             buffer.combined.push(combined);
             buffer.technique.push(technique);
         }
-        Some(buffer)
+        buffer
     }
 
     /// The region of pixel `i` for `portal` (or combined when `None`).
@@ -132,6 +105,35 @@ impl PrimaryBuffer {
         }
         counts.map(|c| c as f32 / total.max(1) as f32)
     }
+}
+
+/// Every pixel's primary hit classified, a row per image row; rows started after `cancel` is
+/// set are left empty.
+fn classified_rows(
+    scene: &Scene,
+    width: u32,
+    height: u32,
+    brute_force: bool,
+    cancel: Option<&AtomicBool>,
+) -> Vec<Vec<PixelClass>> {
+    let sampler = LightSampler::new(scene, Strategy::Antishadow, None);
+    let sky = SkySampler::new(scene, Strategy::Antishadow, None);
+    let aspect = width as f32 / height as f32;
+    (0..height)
+        .into_par_iter()
+        .map(|y| {
+            if cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
+                return Vec::new();
+            }
+            (0..width)
+                .map(|x| {
+                    let ndc = (Vec2::new(x as f32, y as f32) + 0.5)
+                        / Vec2::new(width as f32, height as f32);
+                    classify_ray(scene, (&sampler, &sky), ndc, aspect, brute_force)
+                })
+                .collect()
+        })
+        .collect()
 }
 
 /// One pixel: hit point, region per portal, combined region, technique, selection spread.
