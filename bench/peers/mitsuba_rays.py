@@ -48,6 +48,8 @@ def main():
     ap.add_argument("--portalview", default=str(mb.ROOT / "target/release/portalview"))
     ap.add_argument("--scenes", default="lampshade,fig8a,fig8b,fig8c")
     ap.add_argument("--seconds", type=float, default=2.0, help="portalview's time per measurement")
+    ap.add_argument("--keep", type=Path, help="write the scenes and ray files here (kept), for "
+                    "`portalview bench --only rays` runs without Mitsuba")
     args = ap.parse_args()
 
     import drjit as dr
@@ -57,13 +59,17 @@ def main():
     n = SIZE * SIZE * PASSES
     print(f"Mitsuba {mi.__version__} llvm_ad_rgb ({dr.thread_count()} threads) against portalview, the same rays")
     print()
-    print("| scene | camera rays (Mitsuba: hit) | Mitsuba closest hit Mrays/s | portalview (hit) | shadow rays (Mitsuba: occluded) | Mitsuba occlusion Mrays/s | portalview (occluded) |")
-    print("|---|---:|---:|---:|---:|---:|---:|")
+    print("portalview's rates: its traversal layout in packets of 8 consecutive rays (as Mitsuba "
+          "hands rays to Embree) / one ray at a time / obvhs's traversal one at a time; ratios "
+          "to Mitsuba's for the packets")
+    print()
+    print("| scene | camera rays (Mitsuba: hit) | Mitsuba closest hit Mrays/s | portalview Mrays/s (hit) | ratio | shadow rays (Mitsuba: occluded) | Mitsuba occlusion Mrays/s | portalview Mrays/s (occluded) | ratio |")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|")
     with tempfile.TemporaryDirectory(prefix="portalview-rays-") as tmp:
-        tmp = Path(tmp)
+        tmp = args.keep or Path(tmp)
         for name in args.scenes.split(","):
             scene_dir = tmp / name
-            scene_dir.mkdir()
+            scene_dir.mkdir(parents=True, exist_ok=True)
             desc, lambert = mb.convert(mb.ROOT / "assets" / f"{name}.glb", scene_dir, mi)
             scene = mi.load_dict(desc)
             sensor = scene.sensors()[0]
@@ -106,18 +112,24 @@ def main():
                  "--seconds", str(args.seconds)],
                 check=True, capture_output=True, text=True,
             ).stdout
-            # "closest-hit: N rays, H hit, R Mrays/s" and "occlusion: N rays, K occluded, R Mrays/s"
+            # "KIND[ MODE]: N rays, H hit|occluded, R Mrays/s", KIND closest-hit or occlusion,
+            # MODE absent (packets), "one at a time" or "obvhs".
             rates, answers = {}, {}
             for line in out.splitlines():
                 kind, _, rest = line.partition(": ")
-                if kind in ("closest-hit", "occlusion"):
+                if kind.split(" ")[0] in ("closest-hit", "occlusion"):
                     fields = rest.split(", ")
                     answers[kind] = int(fields[1].split()[0])
                     rates[kind] = float(fields[2].split()[0])
-            print(f"| {name} | {n} ({hits}) | {n / t_closest / 1e6:.1f} "
-                  f"| {rates['closest-hit']:.1f} ({answers['closest-hit']}) "
-                  f"| {len(maxt)} ({occluded}) | {len(maxt) / t_occlusion / 1e6:.1f} "
-                  f"| {rates['occlusion']:.1f} ({answers['occlusion']}) |", flush=True)
+            mitsuba = {"closest-hit": n / t_closest / 1e6, "occlusion": len(maxt) / t_occlusion / 1e6}
+
+            def cells(kind):
+                ours = "/".join(f"{rates[kind + m]:.1f}" for m in ("", " one at a time", " obvhs"))
+                return (f"{mitsuba[kind]:.1f} | {ours} ({answers[kind]}) "
+                        f"| {rates[kind] / mitsuba[kind]:.2f}")
+
+            print(f"| {name} | {n} ({hits}) | {cells('closest-hit')} "
+                  f"| {len(maxt)} ({occluded}) | {cells('occlusion')} |", flush=True)
 
 
 if __name__ == "__main__":

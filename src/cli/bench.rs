@@ -24,7 +24,24 @@ use crate::render::stats::Stats;
 use crate::render::{Tiles, render_tile};
 use crate::sampling::SamplerKind;
 use crate::scene::Scene;
-use crate::scene::bvh::Bvh;
+use crate::scene::bvh::{Bvh, PACKET, Traversal};
+
+/// How a replay traces its rays: through which tree, and one at a time or in packets of
+/// [`PACKET`] consecutive rays (as the renderer traces its camera rays, and as Mitsuba hands its
+/// rays to Embree).
+#[derive(Clone, Copy, Debug)]
+struct Replay {
+    traversal: Traversal,
+    packets: bool,
+}
+
+impl Replay {
+    /// The renderer's traversal, one ray at a time.
+    const SINGLE: Replay = Replay {
+        traversal: Traversal::Wide,
+        packets: false,
+    };
+}
 
 /// Rays per second of the raw traversal over the recorded rays that `keep` selects, tiles
 /// spread over all cores as the renderer spreads them, repeated for `budget`.
@@ -32,6 +49,7 @@ fn replay(
     bvh: &Bvh,
     tiles: &[Vec<RecordedRay>],
     budget: Duration,
+    mode: Replay,
     keep: impl Fn(&RecordedRay) -> bool + Sync,
 ) -> f64 {
     let isa = Isa::detect();
@@ -41,7 +59,7 @@ fn replay(
     while start.elapsed() < budget {
         let (n, s) = tiles
             .par_iter()
-            .map(|tile| trace_tile_isa(isa, bvh, tile, &keep))
+            .map(|tile| trace_tile_isa(isa, bvh, tile, mode, &keep))
             .reduce(|| (0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1));
         count += n;
         sink += s;
@@ -57,15 +75,16 @@ fn trace_tile_isa(
     isa: Isa,
     bvh: &Bvh,
     tile: &[RecordedRay],
+    mode: Replay,
     keep: &impl Fn(&RecordedRay) -> bool,
 ) -> (usize, f32) {
     if isa == Isa::Avx2 && isa.available() {
         // SAFETY: called only where the CPU has the variant's features, checked above.
         #[cfg(target_arch = "x86_64")]
         #[allow(unsafe_code)]
-        return unsafe { trace_tile_avx2(bvh, tile, keep) };
+        return unsafe { trace_tile_avx2(bvh, tile, mode, keep) };
     }
-    trace_tile(bvh, tile, keep)
+    trace_tile(bvh, tile, mode, keep)
 }
 
 #[cfg(target_arch = "x86_64")]
@@ -73,27 +92,81 @@ fn trace_tile_isa(
 fn trace_tile_avx2(
     bvh: &Bvh,
     tile: &[RecordedRay],
+    mode: Replay,
     keep: &impl Fn(&RecordedRay) -> bool,
 ) -> (usize, f32) {
-    trace_tile(bvh, tile, keep)
+    trace_tile(bvh, tile, mode, keep)
 }
 
-/// The rays of one tile that `keep` selects, one at a time: their count, and a sum of their
-/// answers that the optimiser cannot drop.
+/// The rays of one tile that `keep` selects: their count, and a sum of their answers that the
+/// optimiser cannot drop. In packets, runs of consecutive rays of one kind and one `tmin` (and,
+/// for closest hits, one `tmax`) are traced together.
 #[inline(always)]
 fn trace_tile(
     bvh: &Bvh,
     tile: &[RecordedRay],
+    mode: Replay,
     keep: &impl Fn(&RecordedRay) -> bool,
 ) -> (usize, f32) {
     let (mut n, mut sum) = (0, 0.0);
-    for r in tile.iter().filter(|r| keep(r)) {
-        n += 1;
-        sum += if r.closest {
-            bvh.raw_closest_t(r.origin, r.dir, r.tmin, r.tmax).min(1e30)
+    let one = |r: &RecordedRay| {
+        if r.closest {
+            bvh.raw_closest_t(mode.traversal, r.origin, r.dir, r.tmin, r.tmax)
+                .min(1e30)
         } else {
-            bvh.occluded(r.origin, r.dir, r.tmin, r.tmax) as u8 as f32
-        };
+            bvh.raw_occluded(mode.traversal, r.origin, r.dir, r.tmin, r.tmax) as u8 as f32
+        }
+    };
+    if !mode.packets {
+        for r in tile.iter().filter(|r| keep(r)) {
+            n += 1;
+            sum += one(r);
+        }
+        return (n, sum);
+    }
+    for chunk in tile.chunks(PACKET) {
+        let first = &chunk[0];
+        let together = chunk.iter().all(|r| {
+            keep(r)
+                && r.closest == first.closest
+                && r.tmin == first.tmin
+                && (!r.closest || r.tmax == first.tmax)
+        });
+        if !together {
+            for r in chunk.iter().filter(|r| keep(r)) {
+                n += 1;
+                sum += one(r);
+            }
+            continue;
+        }
+        let origins: [Vec3; PACKET] =
+            std::array::from_fn(|i| chunk.get(i).map_or(Vec3::ZERO, |r| r.origin));
+        let dirs: [Vec3; PACKET] = std::array::from_fn(|i| chunk.get(i).map_or(Vec3::X, |r| r.dir));
+        let k = chunk.len();
+        n += k;
+        if first.closest {
+            let mut hits = [None; PACKET];
+            bvh.closest_hits(
+                &origins[..k],
+                &dirs[..k],
+                first.tmin,
+                first.tmax,
+                &mut hits[..k],
+            );
+            sum += hits.iter().flatten().map(|h| h.t.min(1e30)).sum::<f32>();
+        } else {
+            let tmaxes: [f32; PACKET] =
+                std::array::from_fn(|i| chunk.get(i).map_or(0.0, |r| r.tmax));
+            let mut blocked = [false; PACKET];
+            bvh.occluded_each(
+                &origins[..k],
+                &dirs[..k],
+                first.tmin,
+                &tmaxes[..k],
+                &mut blocked[..k],
+            );
+            sum += blocked.iter().filter(|&&b| b).count() as f32;
+        }
     }
     (n, sum)
 }
@@ -267,15 +340,35 @@ fn rays_from_files(args: &BenchArgs) -> Result<()> {
                 }
             })
             .count();
-        let rate = replay(bvh, &tiles, budget, |_| true);
-        println!(
-            "{}: {} rays, {} {}, {:.1} Mrays/s",
-            if closest { "closest-hit" } else { "occlusion" },
-            rays.len(),
-            answered,
-            if closest { "hit" } else { "occluded" },
-            rate / 1e6
-        );
+        let kind = if closest { "closest-hit" } else { "occlusion" };
+        // Side by side in one run: the layout in packets (as Mitsuba hands its rays to
+        // Embree), one at a time (as the renderer traces shadow rays), and obvhs's traversal
+        // one at a time (the renderer's before the layout).
+        for (label, mode) in [
+            (
+                "",
+                Replay {
+                    traversal: Traversal::Wide,
+                    packets: true,
+                },
+            ),
+            (" one at a time", Replay::SINGLE),
+            (
+                " obvhs",
+                Replay {
+                    traversal: Traversal::Cwbvh,
+                    packets: false,
+                },
+            ),
+        ] {
+            let rate = replay(bvh, &tiles, budget, mode, |_| true);
+            println!(
+                "{kind}{label}: {} rays, {answered} {}, {:.1} Mrays/s",
+                rays.len(),
+                if closest { "hit" } else { "occluded" },
+                rate / 1e6
+            );
+        }
     }
     Ok(())
 }
@@ -471,9 +564,9 @@ fn throughput(args: &BenchArgs) -> Result<()> {
             traced as u64 == counted,
             "{name}: the renderer traced {traced} rays but counted {counted}"
         );
-        let closest = replay(bvh, &recorded, budget, |r| r.closest);
-        let occlusion = replay(bvh, &recorded, budget, |r| !r.closest);
-        let raw = replay(bvh, &recorded, budget, |_| true);
+        let closest = replay(bvh, &recorded, budget, Replay::SINGLE, |r| r.closest);
+        let occlusion = replay(bvh, &recorded, budget, Replay::SINGLE, |r| !r.closest);
+        let raw = replay(bvh, &recorded, budget, Replay::SINGLE, |_| true);
         let (_, stats, elapsed) = render_for(&integrator, args.size, args.size, budget);
         let renderer = stats.rays() as f64 / elapsed.as_secs_f64();
         println!(
