@@ -324,6 +324,11 @@ fn rays_from_files(args: &BenchArgs) -> Result<()> {
         rayon::current_num_threads(),
         args.seconds
     );
+    println!(
+        "layout: {} triangles, {:.1} bytes per triangle",
+        bvh.triangle_count(),
+        bvh.bytes_per_triangle()
+    );
     for (path, closest) in [(&args.closest_rays, true), (&args.occlusion_rays, false)] {
         let Some(path) = path else {
             continue;

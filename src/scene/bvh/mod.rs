@@ -1,5 +1,7 @@
-//! The acceleration structure: an obvhs CWBVH over every triangle, with triangles reordered
-//! once into BVH order so traversal reads them sequentially.
+//! The acceleration structure: obvhs builds a CWBVH over every triangle, the triangles are
+//! reordered once into BVH order so traversal reads them sequentially, and the tree is converted
+//! once into portalview's own traversal layout (`wide`), which the renderer traces. obvhs's own
+//! traversal of its CWBVH stays as the reference.
 
 use glam::{UVec2, Vec2, Vec3, Vec3A};
 use obvhs::{
