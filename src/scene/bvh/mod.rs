@@ -148,8 +148,7 @@ fn node_hits_scalar(node: &CwBvhNode, ray: &Ray, oct_inv4: u32) -> u32 {
 /// children in one register, their byte-quantised bounds widened by two instructions instead of
 /// 48 scalar conversions. The same IEEE operations in the same order (multiply, then add, never
 /// fused; `max`/`min` with the same operand order), so the same mask, bit for bit
-/// (`avx2_node_test_agrees_with_obvhs`). Node tests were a fifth of a light sample's
-/// instructions in fig8b; this form takes 8% of that sample's instructions away.
+/// (`avx2_node_test_agrees_with_obvhs`).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 #[inline]
@@ -221,9 +220,9 @@ fn child_hits_avx2(node: &CwBvhNode, ray: &Ray, tmax: f32) -> u32 {
     _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(tmin, tmax)) as u32
 }
 
-/// The closest primitive along `ray` and its distance: obvhs's `CwBvh::ray_traverse`, through
-/// its `traverse!` macro here so that the traversal is compiled into (and inlined by) the
-/// renderer's CPU-feature variants (`render::render_tile`) instead of once for baseline x86-64.
+/// The closest primitive along `ray` and its distance: obvhs's `CwBvh::ray_traverse` (through
+/// its `traverse!` macro, with this module's node test), the reference that portalview's own
+/// layout is tested and benchmarked against.
 #[inline(always)]
 fn closest(
     bvh: &CwBvh,
@@ -253,7 +252,7 @@ fn closest(
 }
 
 /// A primitive that lies along `ray`, if any: obvhs's `CwBvh::ray_traverse_miss`, stopped at
-/// the first hit, for the same reason as [`closest`].
+/// the first hit; the reference, as [`closest`].
 #[inline(always)]
 fn any_hit(
     bvh: &CwBvh,

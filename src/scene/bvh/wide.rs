@@ -148,8 +148,10 @@ impl WideBvh {
     }
 
     /// A triangle on `ray` (one that `intersect` puts below `ray.tmax`), the first found.
-    /// Children are visited farthest first: a shadow ray is most often blocked near the light
-    /// it goes to (by the shade or the fixture around it), not near the point it leaves.
+    /// Inner children are visited farthest first: a shadow ray is most often blocked near the
+    /// light it goes to (by the shade or the fixture around it), not near the point it leaves.
+    /// A leaf's triangles are tested as soon as the leaf is entered (deferring them too tested
+    /// the light's own leaf, at the far end of every shadow ray, first).
     #[inline(always)]
     pub fn any<const AVX2: bool>(
         &self,
