@@ -1,9 +1,9 @@
 //! portalview's own traversal layout over obvhs's tree. obvhs builds the tree and collapses it
 //! to eight children per node (its CWBVH); each node is converted once into its eight children's
-//! boxes as f32 in structure-of-arrays form. The boxes are exact (the union of the triangles'
-//! own bounds, tighter than the CWBVH's byte-quantised ones), so testing a node is six loads, six
-//! subtractions and six multiplications for all eight children, with nothing to decode and no
-//! octant bookkeeping.
+//! boxes as f32 in structure-of-arrays form. The boxes are the union of the triangles' own
+//! bounds, widened only by the triangle test's rounding ([`pad`]; tighter than the CWBVH's
+//! byte-quantised ones), so testing a node is six loads, six subtractions and six
+//! multiplications for all eight children, with nothing to decode and no octant bookkeeping.
 //!
 //! Every traversal here gives an answer that does not depend on the order it visits nodes in:
 //! occlusion is yes or no, and the closest hit is the least (distance, triangle) pair, ties
@@ -105,8 +105,8 @@ impl WideBvh {
 
     /// The closest hit along `ray` among the triangles `intersect` tests (it returns the
     /// distance to triangle `id` within the ray's `[tmin, tmax]`, or infinity): the triangle
-    /// and its distance, the least pair (distance, triangle) below `ray.tmax`. Children are
-    /// visited nearest first.
+    /// and its distance, the least pair (distance, triangle) below `ray.tmax`. Children, leaves
+    /// among them, are visited nearest first, and those entered beyond the best so far skipped.
     #[inline(always)]
     pub fn closest<const AVX2: bool>(
         &self,
@@ -409,8 +409,8 @@ fn min_ps(a: f32, b: f32) -> f32 {
     if a < b { a } else { b }
 }
 
-/// A ray prepared for the slab test of a node's eight children: in AVX2 registers, or as
-/// scalars that take the same IEEE operations in the same order.
+/// A ray prepared for the slab test of a node's eight children, all eight at once in AVX2
+/// registers (`AVX2`) or one by one as scalars, with the same IEEE operations in the same order.
 #[derive(Clone, Copy)]
 struct Slabs<const AVX2: bool> {
     origin: [f32; 3],
