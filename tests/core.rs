@@ -130,7 +130,19 @@ fn bvh_leaves_out_zero_area_triangles_and_refuses_piles_of_coincident_ones() {
         Bvh::build(&vec![triangle; 1000]),
         Err(BvhError::SharedBounds { count: 65 })
     ));
-    assert!(Bvh::build(&vec![triangle; 64]).is_ok());
+    // The most a build accepts makes the deepest tree the traversal meets: a ray through the
+    // pile still finds one of its triangles, alone and in a packet.
+    let pile = Bvh::build(&vec![triangle; 64]).unwrap();
+    let (origin, down) = (Vec3::new(0.25, 0.25, 1.0), -Vec3::Z);
+    let hit = pile.closest_hit(origin, down, 0.0, f32::INFINITY);
+    assert!(
+        hit.is_some_and(|h| h.triangle < 64 && (h.t - 1.0).abs() < 1e-6),
+        "{hit:?}"
+    );
+    assert!(pile.occluded(origin, down, 0.0, 2.0));
+    let mut hits = [None; 8];
+    pile.closest_hits(&[origin; 8], &[down; 8], 0.0, f32::INFINITY, &mut hits);
+    assert!(hits.iter().all(|&h| h == hit), "{hits:?}");
     // Collapsed triangles (a thousand at one point gave a tree 998 levels deep) are left out;
     // hits still name triangles by their index in the input.
     let mut triangles = vec![[Vec3::ZERO; 3]; 1000];
