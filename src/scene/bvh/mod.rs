@@ -668,18 +668,56 @@ impl Bvh {
     /// The closest triangle (BVH order) along `ray` and its distance, by `traversal`.
     #[inline(always)]
     fn closest_id(&self, traversal: Traversal, ray: &Ray) -> Option<(u32, f32)> {
-        let tri = |r: &Ray, id: usize| self.triangles[id].intersect(r);
-        match (traversal, &self.cutouts) {
-            (Traversal::Wide, None) => self.wide_closest(ray, tri),
-            (Traversal::Wide, Some(c)) => {
-                self.wide_closest(ray, |r, id| self.intersect_cutout(c, r, id))
-            }
-            (Traversal::Cwbvh, None) => closest(self.cwbvh.as_ref()?, self.isa, *ray, tri),
-            (Traversal::Cwbvh, Some(c)) => {
-                closest(self.cwbvh.as_ref()?, self.isa, *ray, |r, id| {
-                    self.intersect_cutout(c, r, id)
-                })
-            }
+        match &self.cutouts {
+            None => self.closest_by(traversal, ray, |r, id| self.triangles[id].intersect(r)),
+            Some(c) => self.closest_by(traversal, ray, |r, id| self.intersect_cutout(c, r, id)),
+        }
+    }
+
+    /// The closest triangle that `intersect` meets along `ray`, by `traversal`.
+    #[inline(always)]
+    fn closest_by(
+        &self,
+        traversal: Traversal,
+        ray: &Ray,
+        intersect: impl FnMut(&Ray, usize) -> f32,
+    ) -> Option<(u32, f32)> {
+        match traversal {
+            Traversal::Wide => self.wide_closest(ray, intersect),
+            Traversal::Cwbvh => closest(self.cwbvh.as_ref()?, self.isa, *ray, intersect),
+        }
+    }
+
+    /// A triangle (BVH order) on `ray` by `traversal`: triangle `guess` if it is one, else the
+    /// first the traversal finds.
+    #[inline(always)]
+    fn any_id(&self, traversal: Traversal, ray: &Ray, guess: u32) -> Option<u32> {
+        match &self.cutouts {
+            None => self.any_by(traversal, ray, guess, |r, id| {
+                self.triangles[id].intersect(r)
+            }),
+            Some(c) => self.any_by(traversal, ray, guess, |r, id| {
+                self.intersect_cutout(c, r, id)
+            }),
+        }
+    }
+
+    /// A triangle that `intersect` puts on `ray`: `guess` if it is one (a number past the
+    /// triangles is none), else the first `traversal` finds.
+    #[inline(always)]
+    fn any_by(
+        &self,
+        traversal: Traversal,
+        ray: &Ray,
+        guess: u32,
+        intersect: impl Fn(&Ray, usize) -> f32,
+    ) -> Option<u32> {
+        if (guess as usize) < self.triangles.len() && intersect(ray, guess as usize) < ray.tmax {
+            return Some(guess);
+        }
+        match traversal {
+            Traversal::Wide => self.wide_any(ray, intersect),
+            Traversal::Cwbvh => any_hit(self.cwbvh.as_ref()?, self.isa, *ray, intersect),
         }
     }
 
@@ -813,23 +851,7 @@ impl Bvh {
         tmax: f32,
         guess: u32,
     ) -> Option<u32> {
-        let ray = make_ray(origin, dir, tmin, tmax);
-        match &self.cutouts {
-            None => {
-                let tri = |r: &Ray, id: usize| self.triangles[id].intersect(r);
-                if (guess as usize) < self.triangles.len() && tri(&ray, guess as usize) < tmax {
-                    return Some(guess);
-                }
-                self.wide_any(&ray, tri)
-            }
-            Some(c) => {
-                let tri = |r: &Ray, id: usize| self.intersect_cutout(c, r, id);
-                if (guess as usize) < self.triangles.len() && tri(&ray, guess as usize) < tmax {
-                    return Some(guess);
-                }
-                self.wide_any(&ray, tri)
-            }
-        }
+        self.any_id(Traversal::Wide, &make_ray(origin, dir, tmin, tmax), guess)
     }
 
     pub fn triangle_count(&self) -> usize {
@@ -856,15 +878,8 @@ impl Bvh {
         tmax: f32,
     ) -> f32 {
         let ray = make_ray(origin, dir, tmin, tmax);
-        let tri = |r: &Ray, id: usize| self.triangles[id].intersect(r);
-        match traversal {
-            Traversal::Wide => self.wide_closest(&ray, tri),
-            Traversal::Cwbvh => self
-                .cwbvh
-                .as_ref()
-                .and_then(|bvh| closest(bvh, self.isa, ray, tri)),
-        }
-        .map_or(f32::INFINITY, |(_, t)| t)
+        self.closest_by(traversal, &ray, |r, id| self.triangles[id].intersect(r))
+            .map_or(f32::INFINITY, |(_, t)| t)
     }
 
     /// Whether `traversal` finds a triangle on the segment, for benchmarks (no cut-outs, no
@@ -880,14 +895,7 @@ impl Bvh {
     ) -> bool {
         let ray = make_ray(origin, dir, tmin, tmax);
         let tri = |r: &Ray, id: usize| self.triangles[id].intersect(r);
-        match traversal {
-            Traversal::Wide => self.wide_any(&ray, tri),
-            Traversal::Cwbvh => self
-                .cwbvh
-                .as_ref()
-                .and_then(|bvh| any_hit(bvh, self.isa, ray, tri)),
-        }
-        .is_some()
+        self.any_by(traversal, &ray, NO_OCCLUDER, tri).is_some()
     }
 
     /// The closest hit by obvhs's own traversal of its CWBVH (with this module's node test):
@@ -907,14 +915,7 @@ impl Bvh {
     /// Occlusion by obvhs's own traversal, as [`Self::reference_closest_hit`].
     pub fn reference_occluded(&self, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> bool {
         let ray = make_ray(origin, dir, tmin, tmax);
-        let Some(bvh) = self.cwbvh.as_ref() else {
-            return false;
-        };
-        match &self.cutouts {
-            None => any_hit(bvh, self.isa, ray, |r, id| self.triangles[id].intersect(r)),
-            Some(c) => any_hit(bvh, self.isa, ray, |r, id| self.intersect_cutout(c, r, id)),
-        }
-        .is_some()
+        self.any_id(Traversal::Cwbvh, &ray, NO_OCCLUDER).is_some()
     }
 }
 
