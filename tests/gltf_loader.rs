@@ -253,6 +253,7 @@ fn sample_scene() -> SceneDesc {
             name: "window".to_owned(),
             target: "light".to_owned(),
             alpha: 0.25,
+            auto_alpha: false,
             local_triangles: unit_square(),
             world_from_local: Mat4::from_rotation_translation(
                 Quat::from_rotation_x(FRAC_PI_2),
@@ -1005,6 +1006,7 @@ fn new_portal(name: &str, at: Vec3) -> PortalDesc {
         name: name.to_owned(),
         target: "light".to_owned(),
         alpha: 0.4,
+        auto_alpha: false,
         local_triangles: vec![[Vec3::ZERO, Vec3::X, Vec3::Y]],
         world_from_local: Mat4::from_translation(at),
         node_index: None,

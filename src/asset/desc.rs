@@ -173,8 +173,12 @@ pub struct PortalDesc {
     pub name: String,
     /// Node name of the emissive mesh it opens onto (`extras.portal_target`).
     pub target: String,
-    /// `extras.portal_light_probability`: the probability of sampling the light itself.
+    /// `extras.portal_light_probability`: the probability of sampling the light itself (for
+    /// `auto_alpha`, the value used until the check has measured it).
     pub alpha: f32,
+    /// `portal_light_probability: "auto"`: alpha follows from the measured leak of the portals
+    /// (`scene::portals::auto_alpha`), once per scene, before rendering.
+    pub auto_alpha: bool,
     /// The portal mesh's triangles in the node's local space.
     pub local_triangles: Vec<[Vec3; 3]>,
     /// The node's world transform (its parents' times its own).
@@ -215,6 +219,7 @@ impl PortalDesc {
             name,
             target,
             alpha: DEFAULT_PORTAL_ALPHA,
+            auto_alpha: false,
             local_triangles,
             world_from_local: Mat4::IDENTITY,
             node_index: None,

@@ -4,6 +4,7 @@
 mod bench;
 mod compare;
 mod export;
+mod portals;
 mod render;
 mod view;
 
@@ -13,6 +14,7 @@ use std::path::PathBuf;
 
 pub use bench::BenchArgs;
 pub use compare::CompareArgs;
+pub use portals::PortalsArgs;
 pub use render::RenderArgs;
 pub use view::ViewArgs;
 
@@ -49,6 +51,9 @@ pub enum Command {
     Bench(BenchArgs),
     /// Render strategies for equal time and measure their error against a converged reference.
     Compare(CompareArgs),
+    /// Find a scene's portals (--find SCENE --out OUT.glb), or check the ones it has
+    /// (--check SCENE).
+    Portals(PortalsArgs),
 }
 
 pub fn run(command: Command) -> Result<()> {
@@ -59,6 +64,7 @@ pub fn run(command: Command) -> Result<()> {
         Command::Bench(args) if args.ui => bench::run_ui(&args),
         Command::Bench(args) => bench::run(&args),
         Command::Compare(args) => compare::run(&args),
+        Command::Portals(args) => portals::run(&args),
     }
 }
 

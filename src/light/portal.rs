@@ -47,6 +47,9 @@ pub struct Portal {
     pub light: usize,
     /// Probability of sampling the light itself instead of the portal.
     pub alpha: f32,
+    /// Whether `alpha` is still to be measured (`portal_light_probability: "auto"`, see
+    /// `scene::portals::auto_alpha`); until then it is the default.
+    pub alpha_pending: bool,
     /// The portal, its normal pointing to its front (away from the light).
     pub polygon: ConvexPolygon,
     /// The light polygon, its normal pointing towards the portal's side; `None` for a light
@@ -109,6 +112,7 @@ impl Portal {
             desc_index,
             light,
             alpha: desc.alpha,
+            alpha_pending: desc.auto_alpha,
             polygon,
             light_polygon,
             planes,

@@ -35,6 +35,9 @@ pub struct Window {
     pub desc_index: usize,
     /// Probability of sampling the environment itself instead of the window.
     pub alpha: f32,
+    /// Whether `alpha` is still to be measured (`portal_light_probability: "auto"`, see
+    /// `scene::portals::auto_alpha`); until then it is the default.
+    pub alpha_pending: bool,
     /// The window, its normal pointing to its front (into the room).
     pub polygon: ConvexPolygon,
     /// The largest distance of a vertex from the first: scales the inside test's slack.
@@ -152,6 +155,7 @@ impl Window {
             name: desc.name.clone(),
             desc_index,
             alpha: desc.alpha,
+            alpha_pending: desc.auto_alpha,
             polygon,
             frame,
             guided,

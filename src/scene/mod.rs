@@ -2,6 +2,7 @@
 
 pub mod bvh;
 pub mod opening;
+pub mod portals;
 
 use glam::{Vec2, Vec3, Vec4};
 use std::path::{Path, PathBuf};
@@ -160,6 +161,9 @@ impl LightSurface {
         self.surface.emission_scale(uvs) * coverage
     }
 }
+
+/// The seed of the rays that measure `auto` alphas: a scene gets the same alphas every time.
+const AUTO_ALPHA_SEED: u64 = 0x0a17;
 
 /// The largest coordinate a vertex may have (NaN is refused too). The BVH build takes
 /// differences of box centres and multiplies surface areas by triangle counts in f32: with
@@ -398,7 +402,7 @@ impl Scene {
         let environment = build_environment(desc.environment.as_ref(), &geometry, file)?;
         let (portals, windows) =
             validate_portals(&desc.portals, &geometry, environment.as_deref(), file)?;
-        Ok(Scene {
+        let mut scene = Scene {
             name: desc.name.clone(),
             desc: Arc::new(desc),
             geometry,
@@ -407,7 +411,9 @@ impl Scene {
             windows,
             camera,
             source: None,
-        })
+        };
+        scene.resolve_auto_alpha(AUTO_ALPHA_SEED);
+        Ok(scene)
     }
 
     /// Loads a `.gltf`/`.glb` file.
@@ -461,12 +467,14 @@ impl Scene {
             portals,
             ..(*self.desc).clone()
         };
-        Ok(Scene {
+        let mut scene = Scene {
             desc: Arc::new(desc),
             portals: validated,
             windows,
             ..self.clone()
-        })
+        };
+        scene.resolve_auto_alpha(AUTO_ALPHA_SEED);
+        Ok(scene)
     }
 
     /// The same geometry with the valid ones among `portals`; the others are left out and
@@ -537,18 +545,19 @@ impl Scene {
     }
 
     /// Whether a window lacks the guided table the environment calls for (see
-    /// [`Self::with_portals_deferred`]).
+    /// [`Self::with_portals_deferred`]), or an `auto` alpha is not measured yet.
     pub fn lacks_tables(&self) -> bool {
         let environment = self.environment.as_deref();
-        self.windows.iter().any(|w| w.lacks_table(environment))
+        self.windows.iter().any(|w| w.lacks_table(environment)) || self.alpha_pending()
     }
 
-    /// Builds the guided tables the windows lack.
+    /// Builds the guided tables the windows lack and measures the `auto` alphas.
     pub fn build_tables(&mut self) {
         let environment = self.environment.as_deref();
         for window in &mut self.windows {
             window.build_table(environment);
         }
+        self.resolve_auto_alpha(AUTO_ALPHA_SEED);
     }
 
     /// The same scene under another environment (`None`: black). Windows are rebuilt for it

@@ -173,7 +173,7 @@ fn candidate_planes(
 
 /// The wall's axes: `v` up (world +Y projected into the plane; for a floor or ceiling, world
 /// −Z), `u = v × n` across, so that `u × v = n`.
-fn wall_axes(normal: Vec3) -> (Vec3, Vec3) {
+pub(super) fn wall_axes(normal: Vec3) -> (Vec3, Vec3) {
     let up = if normal.y.abs() < 0.95 {
         Vec3::Y
     } else {

@@ -20,6 +20,7 @@ pub fn portal(name: &str, target: &str, alpha: f32, corners: &[Vec3]) -> PortalD
         name: name.to_owned(),
         target: target.to_owned(),
         alpha,
+        auto_alpha: false,
         local_triangles: (1..corners.len() - 1)
             .map(|i| [corners[0], corners[i], corners[i + 1]])
             .collect(),

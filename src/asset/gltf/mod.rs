@@ -59,6 +59,8 @@ pub const MAX_ELEMENTS: usize = 50_000_000;
 pub const PORTAL_TARGET_KEY: &str = "portal_target";
 /// `extras` key holding the probability of sampling the light itself rather than the portal.
 pub const PORTAL_ALPHA_KEY: &str = "portal_light_probability";
+/// The value of [`PORTAL_ALPHA_KEY`] that asks for alpha from the portals' measured leak.
+pub const AUTO_ALPHA: &str = "auto";
 /// Camera-node `extras` key for the eye-to-target distance (glTF cameras have no target).
 const CAMERA_TARGET_DISTANCE_KEY: &str = "portalview_target_distance";
 const EMISSIVE_STRENGTH_EXTENSION: &str = "KHR_materials_emissive_strength";

@@ -439,6 +439,7 @@ impl<'a> Doc<'a> {
             name: node_name(visit.node, node),
             target: extras.target,
             alpha: extras.alpha,
+            auto_alpha: extras.auto_alpha,
             local_triangles,
             world_from_local: visit.world,
             node_index: Some(visit.node),
@@ -926,6 +927,7 @@ pub(super) fn node_extras(
 pub(super) struct PortalExtras {
     pub(super) target: String,
     pub(super) alpha: f32,
+    pub(super) auto_alpha: bool,
 }
 
 /// The portal a node's extras describe, if they name a `portal_target`.
@@ -944,15 +946,16 @@ pub(super) fn portal_extras(
             format!("must be a non-empty string naming the light's node, found {target}"),
         ));
     };
-    let alpha = match extras.and_then(|e| e.get(PORTAL_ALPHA_KEY)) {
-        None => DEFAULT_PORTAL_ALPHA,
+    let (alpha, auto_alpha) = match extras.and_then(|e| e.get(PORTAL_ALPHA_KEY)) {
+        None => (DEFAULT_PORTAL_ALPHA, false),
+        Some(value) if value.as_str() == Some(AUTO_ALPHA) => (DEFAULT_PORTAL_ALPHA, true),
         Some(value) => match value.as_f64() {
-            Some(a) if (0.0..=1.0).contains(&a) => a as f32,
+            Some(a) if (0.0..=1.0).contains(&a) => (a as f32, false),
             _ => {
                 return Err(invalid(
                     file,
                     format!("{at}, extras.{PORTAL_ALPHA_KEY}"),
-                    format!("must be a number in [0, 1], found {value}"),
+                    format!("must be a number in [0, 1] or \"{AUTO_ALPHA}\", found {value}"),
                 ));
             }
         },
@@ -960,5 +963,6 @@ pub(super) fn portal_extras(
     Ok(Some(PortalExtras {
         target: target.to_owned(),
         alpha,
+        auto_alpha,
     }))
 }

@@ -74,7 +74,7 @@ pub(super) fn save_portals_inner(file: &Path, portals: &[PortalDesc]) -> Result<
                 node.insert("matrix".to_owned(), json_matrix(portal.world_from_local));
                 node.insert(
                     "extras".to_owned(),
-                    Value::Object(portal_extras_json(&portal.target, portal.alpha)),
+                    Value::Object(portal_extras_json(portal)),
                 );
                 new_nodes.push(Value::Object(node));
             }
@@ -103,7 +103,7 @@ pub(super) fn save_portals_inner(file: &Path, portals: &[PortalDesc]) -> Result<
             *extras = Value::Object(Map::new());
         }
         if let Some(extras) = extras.as_object_mut() {
-            extras.extend(portal_extras_json(&portal.target, portal.alpha));
+            extras.extend(portal_extras_json(portal));
         }
     }
     // Deleted portals: detach from every parent and scene; indices stay as they are.

@@ -12,10 +12,18 @@ pub(super) fn json_matrix(m: Mat4) -> Value {
     Value::Array(m.to_cols_array().into_iter().map(json_f32).collect())
 }
 
-pub(super) fn portal_extras_json(target: &str, alpha: f32) -> Map<String, Value> {
+pub(super) fn portal_extras_json(portal: &PortalDesc) -> Map<String, Value> {
     let mut extras = Map::new();
-    extras.insert(PORTAL_TARGET_KEY.to_owned(), Value::from(target));
-    extras.insert(PORTAL_ALPHA_KEY.to_owned(), json_f32(alpha));
+    extras.insert(
+        PORTAL_TARGET_KEY.to_owned(),
+        Value::from(portal.target.as_str()),
+    );
+    let alpha = if portal.auto_alpha {
+        Value::from(AUTO_ALPHA)
+    } else {
+        json_f32(portal.alpha)
+    };
+    extras.insert(PORTAL_ALPHA_KEY.to_owned(), alpha);
     extras
 }
 
@@ -572,7 +580,7 @@ pub(super) fn export_document(
     }
     for portal in &desc.portals {
         let index = geometry.portal_mesh(&portal.name, &portal.local_triangles)?;
-        let extras = portal_extras_json(&portal.target, portal.alpha);
+        let extras = portal_extras_json(portal);
         nodes.push(json::Node {
             name: Some(portal.name.clone()),
             mesh: Some(index),

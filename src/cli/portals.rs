@@ -1,0 +1,190 @@
+//! `portalview portals`: find a scene's portals, or check the ones it has.
+
+use anyhow::{Context, Result, bail};
+use clap::Args;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use super::{EnvironmentArgs, open_scene};
+use crate::asset::desc::SceneDesc;
+use crate::asset::gltf;
+use crate::scene::Scene;
+use crate::scene::portals::{self, Found, Source, SourceCheck};
+
+#[derive(Args, Debug)]
+#[command(group(clap::ArgGroup::new("what").required(true).args(["find", "check"])))]
+pub struct PortalsArgs {
+    /// Find the openings of every light and of the sky, and fit a portal to each (alpha
+    /// `auto`); the portals replace the scene's.
+    #[arg(long, value_name = "SCENE")]
+    pub find: Option<String>,
+    /// Where `--find` writes the scene with its found portals (a `.glb`; a glTF file keeps
+    /// every other byte, as the viewer's Save portals does).
+    #[arg(long, value_name = "OUT", requires = "find")]
+    pub out: Option<PathBuf>,
+    /// Check the scene's portals: per light and for the sky, the share of the light that
+    /// leaves through them, the share that leaks past them, and the portals no light passes.
+    /// Exits with an error when something is wrong.
+    #[arg(long, value_name = "SCENE")]
+    pub check: Option<String>,
+    /// Seed of the check's rays.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    #[command(flatten)]
+    pub environment: EnvironmentArgs,
+}
+
+pub fn run(args: &PortalsArgs) -> Result<()> {
+    if let Some(name) = &args.find {
+        let out = args
+            .out
+            .as_deref()
+            .context("--find needs --out OUT.glb: where to write the scene with its portals")?;
+        return find(name, out, args);
+    }
+    if let Some(name) = &args.check {
+        let scene = open_scene(name, &args.environment)?;
+        let start = Instant::now();
+        let checks = portals::check(&scene, args.seed);
+        let seconds = start.elapsed().as_secs_f64();
+        let problems = print_checks(&scene, &checks);
+        println!("checked in {seconds:.2} s");
+        if problems > 0 {
+            bail!("{name}: {problems} problem(s) with its portals");
+        }
+    }
+    Ok(())
+}
+
+fn find(name: &str, out: &Path, args: &PortalsArgs) -> Result<()> {
+    let scene = open_scene(name, &args.environment)?;
+    let start = Instant::now();
+    let found = portals::find(&scene);
+    let seconds = start.elapsed().as_secs_f64();
+    print_found(&scene, &found);
+    println!("found in {seconds:.2} s");
+    if !scene.desc.portals.is_empty() {
+        println!(
+            "the {} portal(s) of {name} are replaced by the found ones",
+            scene.desc.portals.len()
+        );
+    }
+    // The found portals must make a valid scene before anything is written.
+    let with_found = scene
+        .with_portals(found.portals.clone())
+        .with_context(|| format!("{name}: the found portals"))?;
+    write(&scene, &with_found.desc, &found, out)?;
+    println!("wrote {}", out.display());
+    let checks = portals::check(&with_found, args.seed);
+    println!("\ncheck of the found portals:");
+    print_checks(&with_found, &checks);
+    Ok(())
+}
+
+/// Writes the scene with the found portals: into a copy of its glTF file (every other byte
+/// kept), or, for a built-in or another format, as a new `.glb`.
+fn write(scene: &Scene, desc: &SceneDesc, found: &Found, out: &Path) -> Result<()> {
+    let same_format = |source: &Path| {
+        source.extension().map(|e| e.to_ascii_lowercase())
+            == out.extension().map(|e| e.to_ascii_lowercase())
+    };
+    match &scene.source {
+        Some(source) if same_format(source) => {
+            // A temporary copy beside the target, renamed over it once written.
+            let mut temporary = out.as_os_str().to_owned();
+            temporary.push(".portals-tmp");
+            let temporary = PathBuf::from(temporary);
+            std::fs::copy(source, &temporary).with_context(|| {
+                format!("copying {} to {}", source.display(), temporary.display())
+            })?;
+            let written = gltf::save_portals(&temporary, &found.portals)
+                .map_err(anyhow::Error::from)
+                .and_then(|()| {
+                    std::fs::rename(&temporary, out)
+                        .with_context(|| format!("renaming {}", temporary.display()))
+                });
+            if written.is_err() {
+                let _ = std::fs::remove_file(&temporary);
+            }
+            written
+        }
+        _ => Ok(gltf::export_glb(desc, out)?),
+    }
+}
+
+fn source_label(scene: &Scene, source: Source) -> String {
+    match source {
+        Source::Light(i) => format!("light '{}'", scene.geometry.lights[i].name),
+        Source::Environment => "the sky".to_owned(),
+    }
+}
+
+fn print_found(scene: &Scene, found: &Found) {
+    for source in &found.sources {
+        let label = source_label(scene, source.source);
+        match source.source {
+            Source::Light(_) => println!(
+                "{label}: {:.0}% of its light stopped around it, {} opening(s)",
+                100.0 * source.stopped,
+                source.openings.len()
+            ),
+            Source::Environment => println!("{label}: {} window(s)", source.openings.len()),
+        }
+        for opening in &source.openings {
+            let area = crate::sampling::polygon::polygon_area(&opening.corners);
+            println!(
+                "  {}-gon of {:.4} m² facing ({:.2}, {:.2}, {:.2}), {:.1}% of the light",
+                opening.corners.len(),
+                area,
+                opening.normal.x,
+                opening.normal.y,
+                opening.normal.z,
+                100.0 * opening.share
+            );
+        }
+        for note in &source.notes {
+            println!("  note: {note}");
+        }
+    }
+}
+
+/// Prints the checks; returns how many problems they found.
+fn print_checks(scene: &Scene, checks: &[SourceCheck]) -> usize {
+    if checks.is_empty() {
+        println!("no portals to check");
+    }
+    let mut problems = 0;
+    for check in checks {
+        println!(
+            "{}: {:.1}% of its light leaves through its portals, {:.1}% ± {:.1}% past them",
+            source_label(scene, check.source),
+            100.0 * check.through,
+            100.0 * check.leak,
+            100.0 * check.leak_error
+        );
+        for p in &check.portals {
+            println!(
+                "  {}: {:.1}%{}",
+                p.name,
+                100.0 * p.share,
+                if p.wrong_way > 0.0 {
+                    format!(" ({:.1}% the wrong way)", 100.0 * p.wrong_way)
+                } else {
+                    String::new()
+                }
+            );
+        }
+        for note in &check.notes {
+            println!("  note: {note}");
+        }
+        for problem in check.problems() {
+            println!("  PROBLEM: {problem}");
+            problems += 1;
+        }
+        println!(
+            "  alpha with auto: {:.3}",
+            portals::auto_alpha(check.leak_fraction(), check.complete)
+        );
+    }
+    problems
+}
