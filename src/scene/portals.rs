@@ -956,7 +956,9 @@ pub fn check_light(scene: &Scene, index: usize, found: &Openings, seed: u64) -> 
             .iter()
             .filter_map(|(polygon, size)| {
                 let t = polygon.intersect(o, d)?;
-                (t < t_hit).then_some(t + 0.5 * size)
+                // Out only if it goes on past the opening's plane (a ray that meets the rim
+                // itself, in the polygon's hair of margin, stays in).
+                (t + 1e-3 * size < t_hit).then_some(t + 0.5 * size)
             })
             .fold(None, |best: Option<f32>, t| {
                 Some(best.map_or(t, |b| b.min(t)))
@@ -1024,7 +1026,8 @@ pub fn check_sky(scene: &Scene, seed: u64) -> SourceCheck {
         .collect();
     let mut rng = Rng::keyed(seed, &[0x534b_59, 0]);
     let (mut through, mut wrong) = (vec![0f64; windows.len()], vec![0f64; windows.len()]);
-    let (mut total, mut leak, mut leak_squares) = (0f64, 0f64, 0f64);
+    let (mut total, mut leak) = (0f64, 0f64);
+    let (mut squares, mut leak_squares) = (0f64, 0f64);
     for &(p, n) in &inside {
         let frame = Frame::from_normal(n);
         for _ in 0..SKY_RAYS_PER_POINT {
@@ -1037,6 +1040,7 @@ pub fn check_sky(scene: &Scene, seed: u64) -> SourceCheck {
             }
             let w = f64::from(luminance(sky_radiance(scene, d)));
             total += w;
+            squares += w * w;
             let mut first: Option<(f32, usize, bool)> = None;
             for (k, window) in windows.iter().enumerate() {
                 if let Some(t) = window.polygon.intersect(p, d)
@@ -1059,17 +1063,17 @@ pub fn check_sky(scene: &Scene, seed: u64) -> SourceCheck {
         }
     }
     let total = total.max(f64::MIN_POSITIVE);
-    let rays = (inside.len() * SKY_RAYS_PER_POINT).max(1) as f64;
     let share = leak / total;
-    // The leak share is a ratio of sums; its variance from the per-ray leak weights.
-    let mean_w = total / rays;
-    let variance = (leak_squares / rays - (leak / rays).powi(2)) / rays;
+    // A ratio of sums, Σx/Σw with x = w·[leaks]: its variance is Var(x − share·w)/(N·E[w]²),
+    // and Σ(x − share·w)² = (1 − 2·share)·Σx² + share²·Σw² since x·w = x².
+    let residual = (1.0 - 2.0 * share) * leak_squares + share * share * squares;
+    let leak_error = residual.max(0.0).sqrt() / total;
     SourceCheck {
         source: Source::Environment,
         name: ENVIRONMENT_TARGET.to_owned(),
         through: (through.iter().sum::<f64>() / total) as f32,
         leak: share as f32,
-        leak_error: (variance.max(0.0).sqrt() / mean_w) as f32,
+        leak_error: leak_error as f32,
         portals: windows
             .iter()
             .enumerate()
