@@ -455,3 +455,48 @@ fn an_environment_edit_builds_in_the_background_and_saves() {
         let _ = std::fs::remove_dir_all(dir);
     }
 }
+
+/// *Find portals* on `window` with its portal deleted proposes a window portal over the
+/// opening (alpha auto), and the check that follows finds no leak; a flipped window is then
+/// flagged by *Check portals*, in red in the panel; Undo brings the deleted portal back.
+#[test]
+fn find_and_check_portals_from_the_panel() {
+    let _serial = serial();
+    let mut h = harness("window");
+    step_until(&mut h, "first frame", has_full_frame);
+    let hand = h.state().editor.portals.clone();
+    h.get_by_label("window_north (window)").click();
+    h.step();
+    h.get_by_label("Delete portal").click();
+    h.run_steps(2);
+    assert!(h.state().editor.portals.is_empty());
+
+    h.get_by_label("Find portals").click();
+    h.run_steps(2);
+    step_until(&mut h, "found and checked", |a| {
+        !a.is_checking_portals() && a.portal_checks().is_some()
+    });
+    let found = h.state().editor.portals.clone();
+    assert_eq!(found.len(), 1, "{found:?}");
+    assert!(found[0].is_window() && found[0].auto_alpha);
+    let checks = h.state().portal_checks().unwrap().to_vec();
+    assert!(checks.iter().all(|c| c.problems().is_empty()), "{checks:?}");
+    h.get_by_label_contains("environment: 100.0% through its portals");
+
+    // Flipped, the window lets no light out the right way: the check says so.
+    h.get_by_label("Flip").click();
+    h.run_steps(2);
+    h.get_by_label("Check portals").click();
+    h.run_steps(2);
+    step_until(&mut h, "checked", |a| {
+        !a.is_checking_portals() && a.portal_checks().is_some()
+    });
+    h.get_by_label_contains("faces the wrong way");
+
+    // Undo (flip, then find) restores the hand-placed window.
+    for _ in 0..2 {
+        h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Z);
+        h.run_steps(2);
+    }
+    assert_eq!(h.state().editor.portals, hand);
+}

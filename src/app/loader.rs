@@ -9,6 +9,7 @@ use crate::asset::desc::{PortalDesc, SceneDesc};
 use crate::asset::environment::{EnvMap, EnvironmentOverrides, load_image};
 use crate::asset::gltf;
 use crate::scene::Scene;
+use crate::scene::portals;
 
 /// What a finished job produced.
 pub(super) enum Done {
@@ -29,6 +30,13 @@ pub(super) enum Done {
     /// An environment image read from a file.
     /// An environment image read, and what was repaired in it (negative pixels).
     Environment { map: EnvMap, warnings: Vec<String> },
+    /// The portals found for a scene (`portals::find`).
+    Found(portals::Found),
+    /// A check of `portals` (the editor's, when it was asked for).
+    Checked {
+        portals: Vec<PortalDesc>,
+        checks: Vec<portals::SourceCheck>,
+    },
 }
 
 /// Where and what to save.
@@ -118,6 +126,28 @@ impl Job {
                 portals: desc.portals,
             })
         })
+    }
+
+    /// Finds the openings of the scene's lights and sky, and a portal for each.
+    pub fn find_portals(scene: Scene, ctx: &egui::Context) -> Job {
+        Job::spawn("finding portals".into(), ctx, move || {
+            Ok(Done::Found(portals::find(&scene)))
+        })
+    }
+
+    /// Checks the scene's portals (its description's are the editor's).
+    pub fn check_portals(scene: Scene, ctx: &egui::Context) -> Job {
+        Job::spawn("checking portals".into(), ctx, move || {
+            Ok(Done::Checked {
+                portals: scene.desc.portals.clone(),
+                checks: portals::check(&scene, 0),
+            })
+        })
+    }
+
+    /// What it is doing, in a few words.
+    pub fn what(&self) -> &str {
+        &self.what
     }
 
     fn spawn(

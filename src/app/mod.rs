@@ -36,6 +36,7 @@ use crate::render::worker::{Frame, RenderHandle, RenderRequest};
 use crate::sampling::SamplerKind;
 use crate::scene::Scene;
 use crate::scene::opening::fit_opening;
+use crate::scene::portals::SourceCheck;
 use builder::{Builder, Built};
 use compare_view::CompareView;
 use edit::PortalEditor;
@@ -80,6 +81,10 @@ enum Command {
     DeletePortal(usize),
     /// A portal's fields changed (the editor holds the new value).
     PortalEdited,
+    /// Find the openings of the lights and the sky and propose a portal for each.
+    FindPortals,
+    /// Check the editor's portals: leaks and portals no light passes.
+    CheckPortals,
 }
 
 /// The scene on screen.
@@ -97,6 +102,10 @@ struct Current {
     camera: Camera,
     /// Portals the editor holds that break a precondition: (index, message).
     portal_errors: Vec<(usize, String)>,
+    /// The last check, and the portals it checked (stale once they are edited).
+    checks: Option<(Vec<PortalDesc>, Vec<SourceCheck>)>,
+    /// What the last *Find portals* noted (lights in the open, openings left without a portal).
+    found_notes: Vec<String>,
 }
 
 impl Current {
@@ -107,7 +116,17 @@ impl Current {
             scene,
             environment: None,
             portal_errors: Vec::new(),
+            checks: None,
+            found_notes: Vec::new(),
         }
+    }
+
+    /// The last check, if it checked the portals `editor` holds now.
+    fn fresh_checks(&self, editor: &[PortalDesc]) -> Option<&[SourceCheck]> {
+        self.checks
+            .as_ref()
+            .filter(|(checked, _)| checked.as_slice() == editor)
+            .map(|(_, checks)| checks.as_slice())
     }
 
     /// The environment as last edited (what the panel shows and saving writes).
@@ -154,6 +173,8 @@ pub struct PortalViewApp {
     message: Option<String>,
     /// A scene opening or saving on a background thread.
     job: Option<Job>,
+    /// Portals being found or checked on a background thread.
+    portal_job: Option<Job>,
     /// The file dialog, while it is open.
     picker: Option<FilePicker>,
     /// The "open path" field of the menu bar.
@@ -223,6 +244,7 @@ impl PortalViewApp {
         let job = Job::open_with_environment(settings.scene.clone(), options.environment, ctx);
         Ok(PortalViewApp {
             job: Some(job),
+            portal_job: None,
             settings,
             current: None,
             editor: PortalEditor::default(),
@@ -263,6 +285,18 @@ impl PortalViewApp {
     /// without their tables (`None` until the first scene has loaded).
     pub fn rendered(&self) -> Option<&Scene> {
         self.current.as_ref().map(|c| &c.rendered)
+    }
+
+    /// Whether portals are being found or checked in the background.
+    pub fn is_checking_portals(&self) -> bool {
+        self.portal_job.is_some()
+    }
+
+    /// The last check of the portals, if it checked those the editor holds now.
+    pub fn portal_checks(&self) -> Option<&[SourceCheck]> {
+        self.current
+            .as_ref()
+            .and_then(|c| c.fresh_checks(&self.editor.portals))
     }
 
     /// Whether an edit's window tables or environment are building in the background.
@@ -457,6 +491,47 @@ impl PortalViewApp {
         self.job = Some(Job::save(request, &self.ctx));
     }
 
+    /// Checks the editor's portals in the background.
+    fn check_portals(&mut self) {
+        if let Some(current) = &self.current {
+            let scene = current.rendered.clone();
+            self.portal_job = Some(Job::check_portals(scene, &self.ctx));
+        }
+    }
+
+    /// Takes the found portals into the editor (an undoable edit; their alpha is `auto`),
+    /// then checks them; or a check's result.
+    fn poll_portal_job(&mut self) {
+        let Some(result) = self.portal_job.as_ref().and_then(Job::poll) else {
+            return;
+        };
+        self.portal_job = None;
+        match result {
+            Ok(Done::Found(found)) => {
+                let Some(current) = &mut self.current else {
+                    return;
+                };
+                current.found_notes = found
+                    .sources
+                    .iter()
+                    .flat_map(|s| s.notes.iter().map(move |n| format!("{}: {n}", s.name)))
+                    .collect();
+                self.editor.checkpoint();
+                self.editor.portals = found.portals;
+                self.editor.selected = (!self.editor.portals.is_empty()).then_some(0);
+                self.apply_portal_edit();
+                self.check_portals();
+            }
+            Ok(Done::Checked { portals, checks }) => {
+                if let Some(current) = &mut self.current {
+                    current.checks = Some((portals, checks));
+                }
+            }
+            Ok(_) => {}
+            Err(e) => self.message = Some(e),
+        }
+    }
+
     /// Takes the background job's result: a scene to show, or an error to report (the current
     /// scene stays). If the first scene fails, the default one is opened instead.
     fn poll_job(&mut self) {
@@ -499,6 +574,8 @@ impl PortalViewApp {
                     self.message = Some(warnings.join("\n"));
                 }
             }
+            // Finding and checking run as portal jobs, never as this one.
+            Ok(Done::Found(_) | Done::Checked { .. }) => {}
             Err(e) => {
                 self.message = Some(e);
                 if self.current.is_none() && self.settings.scene != DEFAULT_SCENE {
@@ -701,6 +778,13 @@ impl PortalViewApp {
                     edited = true;
                 }
                 Command::PortalEdited => edited = true,
+                Command::FindPortals => {
+                    if let Some(current) = &self.current {
+                        let scene = current.rendered.clone();
+                        self.portal_job = Some(Job::find_portals(scene, &self.ctx));
+                    }
+                }
+                Command::CheckPortals => self.check_portals(),
             }
         }
         if edited {
@@ -715,6 +799,7 @@ impl PortalViewApp {
         let start = Instant::now();
         let ctx = ui.ctx().clone();
         self.poll_job();
+        self.poll_portal_job();
         self.poll_build();
         self.poll_frame();
         self.view.update_overlay(

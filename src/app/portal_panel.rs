@@ -13,6 +13,7 @@ impl PortalViewApp {
             editor,
             overlay_portal,
             placing_window,
+            portal_job,
             ..
         } = self;
         let Some(current) = current else {
@@ -45,6 +46,29 @@ impl PortalViewApp {
         // scroll bar that height brings changes the width back, so the layout had two stable
         // states and the first frame decided which.
         ui.vertical(|ui| {
+            ui.add_enabled_ui(portal_job.is_none(), |ui| {
+                if ui
+                    .button("Find portals")
+                    .on_hover_text("Find the openings through which each light's light (and the sky's) leaves what surrounds it, and propose a portal over each, alpha auto. They replace the portals in the list (Undo brings those back); keep, edit or delete each, then save")
+                    .clicked()
+                {
+                    commands.push(Command::FindPortals);
+                }
+                if ui
+                    .button("Check portals")
+                    .on_hover_text("Trace each light's light (and the sky's) past the portals: the share that leaves through them, the share that leaks past them, and portals no light passes (drawn red)")
+                    .clicked()
+                {
+                    commands.push(Command::CheckPortals);
+                }
+            });
+            if let Some(job) = portal_job {
+                ui.horizontal(|ui| {
+                    ui.spinner();
+                    ui.label(format!("{}…", job.what()));
+                });
+            }
+            check_report(ui, current, &editor.portals);
             if ui
                 .button("Add window portal")
                 .on_hover_text("Then click a window opening (a hole in a wall) in the image: the window portal is fitted to it, facing into the room; where there is none, a 1 m square at the camera's target. Also: right-click the image")
@@ -170,6 +194,50 @@ impl PortalViewApp {
             } else {
                 "unsaved changes (File > Save as .glb…)"
             });
+        }
+    }
+}
+
+/// The last check's shares and problems, red where something is wrong; what the last *Find
+/// portals* noted.
+fn check_report(ui: &mut Ui, current: &super::Current, portals: &[crate::asset::desc::PortalDesc]) {
+    let red = Color32::from_rgb(255, 90, 80);
+    for note in &current.found_notes {
+        ui.label(format!("found: {note}"));
+    }
+    let Some(checks) = current.fresh_checks(portals) else {
+        if current.checks.is_some() {
+            ui.label("the portals changed since the check: Check portals again");
+        }
+        return;
+    };
+    if checks.is_empty() {
+        ui.label("checked: no portals to check");
+    }
+    for check in checks {
+        let problems = check.problems();
+        let line = format!(
+            "{}: {:.1}% through its portals, {:.1}% ± {:.1}% past them",
+            check.name,
+            100.0 * check.through,
+            100.0 * check.leak,
+            100.0 * check.leak_error
+        );
+        if problems.is_empty() {
+            ui.label(line);
+        } else {
+            ui.colored_label(red, line);
+        }
+        for p in &check.portals {
+            let line = format!("    {}: {:.1}%", p.name, 100.0 * p.share);
+            if p.share == 0.0 {
+                ui.colored_label(red, line);
+            } else {
+                ui.label(line);
+            }
+        }
+        for problem in problems {
+            ui.colored_label(red, format!("    {problem}"));
         }
     }
 }

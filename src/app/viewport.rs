@@ -96,12 +96,34 @@ impl Current {
     }
 
     fn draw_outlines(&self, editor: &PortalEditor, painter: &egui::Painter, projector: &Projector) {
+        let checks = self.fresh_checks(&editor.portals);
+        // Openings the light leaks through past every portal: dashed red.
+        for corners in checks.into_iter().flatten().flat_map(|c| &c.leaking) {
+            for k in 0..corners.len() {
+                let (a, b) = (corners[k], corners[(k + 1) % corners.len()]);
+                if let Some(s) = projector.segment(a, b) {
+                    painter.extend(egui::Shape::dashed_line(
+                        &s,
+                        Stroke::new(2.0, Color32::RED),
+                        6.0,
+                        4.0,
+                    ));
+                }
+            }
+        }
         for i in 0..editor.portals.len() {
             let Some(p) = self.portal_polygon(editor, i) else {
                 continue;
             };
             let broken = self.portal_errors.iter().any(|(e, _)| *e == i);
-            let colour = if broken {
+            // A checked portal no light passes is as wrong as a broken one.
+            let useless = checks.is_some_and(|checks| {
+                checks
+                    .iter()
+                    .flat_map(|c| c.useless())
+                    .any(|p| p.desc_index == i)
+            });
+            let colour = if broken || useless {
                 Color32::RED
             } else if editor.selected == Some(i) {
                 Color32::from_rgb(255, 230, 80)

@@ -188,7 +188,8 @@ pub struct BenchArgs {
     /// their cost: each built-in scene with and without textures), tiles (the cost of a sample
     /// on one thread, robust to other load: each tile's fastest of `--repeats` renders), rays
     /// (raw traversal of rays read from files: `--rays-scene`, `--closest-rays`,
-    /// `--occlusion-rays`), or all (everything but tiles and rays).
+    /// `--occlusion-rays`), portals (the time to find and check portals), or all (everything
+    /// but tiles, rays and portals).
     #[arg(long, value_enum, default_value_t = BenchPart::All)]
     pub only: BenchPart,
     /// The relMSE that "time to an equal error" waits for.
@@ -209,7 +210,8 @@ pub struct BenchArgs {
     /// ~/.cache/portalview].
     #[arg(long)]
     pub cache_dir: Option<std::path::PathBuf>,
-    /// Renders of each tile in `--only tiles`; the fastest counts.
+    /// Renders of each tile in `--only tiles`, finds and checks of each scene in `--only
+    /// portals`; the fastest counts.
     #[arg(long, default_value_t = 5)]
     pub repeats: u32,
     /// With `--only rays`: the scene (built-in name or glTF file) to trace the rays through.
@@ -235,6 +237,9 @@ pub enum BenchPart {
     /// Raw traversal of rays read from files (`--rays-scene`, `--closest-rays`,
     /// `--occlusion-rays`): another renderer's rays, traced as portalview traces its own.
     Rays,
+    /// The time to find portals (each built-in with its portals removed) and to check them
+    /// (with its own), and both in `livingroom` with a million more triangles.
+    Portals,
 }
 
 /// `portalview bench`: raw traversal against the renderer, each strategy's cost, and each
@@ -248,6 +253,9 @@ pub fn run(args: &BenchArgs) -> Result<()> {
     }
     if args.only == BenchPart::Rays {
         return rays_from_files(args);
+    }
+    if args.only == BenchPart::Portals {
+        return portals(args.repeats);
     }
     if args.only != BenchPart::Convergence {
         throughput(args)?;
@@ -387,6 +395,66 @@ const RAY_FILE_TILE: usize = 4096;
 /// time of each tile counts. On a machine shared with other work, a tile's fastest render
 /// (about a millisecond) is rarely disturbed, where a whole render's rate moves by tens of
 /// percent; alternating the two selections tile by tile puts them side by side.
+/// The fastest of `repeats` calls of `f`, in seconds.
+fn fastest(repeats: u32, mut f: impl FnMut()) -> f64 {
+    (0..repeats.max(1))
+        .map(|_| {
+            let start = Instant::now();
+            f();
+            start.elapsed().as_secs_f64()
+        })
+        .fold(f64::INFINITY, f64::min)
+}
+
+/// Times `portals::find` on each built-in without its portals and `portals::check` with them,
+/// then both in `livingroom` under a rug of a million triangles.
+fn portals(repeats: u32) -> Result<()> {
+    use crate::scene::portals::{check, find};
+    println!("| scene | triangles | find (s) | check (s) | portals found |");
+    println!("|---|---:|---:|---:|---:|");
+    let mut scenes: Vec<(String, Scene)> = builtin::NAMES
+        .iter()
+        .map(|&name| Ok((name.to_owned(), Scene::open(name)?)))
+        .collect::<Result<_>>()?;
+    scenes.push((
+        "livingroom + 1M-triangle rug".to_owned(),
+        million_triangle_room()?,
+    ));
+    for (name, scene) in scenes {
+        let bare = scene.with_portals(Vec::new())?;
+        let mut found = 0;
+        let find_seconds = fastest(repeats, || found = find(&bare).portals.len());
+        let check_seconds = fastest(repeats, || {
+            check(&scene, 0);
+        });
+        println!(
+            "| {name} | {} | {find_seconds:.3} | {check_seconds:.3} | {found} |",
+            scene.geometry.triangles.len()
+        );
+    }
+    Ok(())
+}
+
+/// `livingroom` with a rug of 1,000,000 triangles (a 500 × 1000 grid of quads) on its floor.
+fn million_triangle_room() -> Result<Scene> {
+    let mut desc = builtin::desc("livingroom").context("the livingroom built-in")?;
+    let (nx, nz) = (500usize, 1000usize);
+    let (x0, x1, z0, z1, y) = (-2.0f32, 2.0f32, -1.0f32, 3.0f32, 0.002f32);
+    let at = |i: usize, j: usize| {
+        Vec3::new(
+            x0 + (x1 - x0) * i as f32 / nx as f32,
+            y,
+            z0 + (z1 - z0) * j as f32 / nz as f32,
+        )
+    };
+    let quads: Vec<Vec<Vec3>> = (0..nx)
+        .flat_map(|i| (0..nz).map(move |j| (i, j)))
+        .map(|(i, j)| vec![at(i, j), at(i, j + 1), at(i + 1, j + 1), at(i + 1, j)])
+        .collect();
+    desc.meshes.push(builtin::flat_mesh("rug", 0, &quads));
+    Ok(Scene::from_desc(desc, "livingroom + rug")?)
+}
+
 fn tiles(size: u32, repeats: u32) -> Result<()> {
     anyhow::ensure!(
         repeats > 0 && size > 0,

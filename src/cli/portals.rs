@@ -182,8 +182,10 @@ fn print_checks(scene: &Scene, checks: &[SourceCheck]) -> usize {
             problems += 1;
         }
         println!(
-            "  alpha with auto: {:.3}",
-            portals::auto_alpha(check.leak_fraction(), check.complete)
+            "  alpha with auto: {:.3} ({} rays, {:.1}% of them get out)",
+            check.auto_alpha(),
+            check.rays,
+            100.0 * check.reach
         );
     }
     problems

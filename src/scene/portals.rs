@@ -39,14 +39,15 @@ const SAME_SURFACE: f32 = 1.25;
 const RIM_BISECTIONS: usize = 14;
 /// An opening that carries less of the light than this gets no portal.
 pub const MIN_OPENING_SHARE: f32 = 0.01;
-/// Rays per light (and per camera point, for the sky) of a check.
-pub const CHECK_RAYS: usize = 1 << 15;
-/// The sky check's points: a grid of camera rays, and rays per point.
+/// A check draws rays until this many get out (through a portal or past them), so that its
+/// resolution of the leak does not depend on how much of the light is stopped...
+pub const CHECK_LEAVING_RAYS: usize = 1 << 15;
+/// ... or until it has drawn this many.
+const CHECK_MAX_RAYS: usize = 1 << 21;
+/// The sky check's points: a grid of camera rays, and rays per point and pass.
 const SKY_GRID: (usize, usize) = (24, 18);
-const SKY_RAYS_PER_POINT: usize = 96;
-/// The smallest alpha `auto` gives: a leak too small for the check to see (below 4.6/N of
-/// the leaving light with 99% confidence, N = [`CHECK_RAYS`]) then adds at most 1% to the
-/// variance (`docs/method.md` §11.3).
+const SKY_RAYS_PER_POINT: usize = 32;
+/// The smallest alpha `auto` gives (`docs/method.md` §11.3).
 pub const MIN_AUTO_ALPHA: f32 = 0.02;
 
 /// Whose light a portal or an opening passes.
@@ -382,16 +383,18 @@ fn openings_seen(scene: &Scene, pano: &Panorama, leaving: Leaving) -> (Vec<Seen>
         seen[k].weight += pano.weight[c];
         solid[k] += solid_angle(c);
     }
-    // The rim: pairs across the edge between an opening and the enclosure surface that holds
-    // most of its edge (not an island inside it, such as a lamp's stem).
+    // The rim: pairs across the edge between an opening and the largest surface around it (for
+    // the sky, the wall rather than a curtain rod in the window).
     let mut pairs: Vec<Vec<(usize, usize)>> = vec![Vec::new(); seen.len()];
     for (a, b) in Panorama::neighbours() {
         match (pano.lit[a], pano.lit[b]) {
             (true, true) => {}
             (true, false) | (false, true) => {
                 let lit = if pano.lit[a] { a } else { b };
-                if leaves(lit) {
-                    seen[index[&groups.root(lit)]].open = true;
+                if leaves(lit)
+                    && let Some(&k) = index.get(&groups.root(lit))
+                {
+                    seen[k].open = true;
                 }
                 continue;
             }
@@ -402,7 +405,9 @@ fn openings_seen(scene: &Scene, pano: &Panorama, leaving: Leaving) -> (Vec<Seen>
             (true, false) => (b, a),
             _ => continue,
         };
-        pairs[index[&groups.root(l)]].push((e, l));
+        if let Some(&k) = index.get(&groups.root(l)) {
+            pairs[k].push((e, l));
+        }
     }
     for (k, opening) in seen.iter_mut().enumerate() {
         if solid[k] > std::f32::consts::TAU {
@@ -525,9 +530,11 @@ fn enclosing_polygon(mut hull: Vec<DVec2>, max: usize) -> Vec<DVec2> {
             .map(|i| 0.5 * h[i].perp_dot(h[(i + 1) % h.len()]))
             .sum::<f64>()
     };
-    // Removals that add next to nothing go on below `max` too: a vertex on a straight side
-    // (collinear to rounding) would make the polygon's edges ill-defined.
-    let negligible = 1e-6 * area(&hull);
+    // Removals that add little go on below `max` too, up to 1% of the area in all: a corner
+    // the rim's samples cut off is put back (an uncovered corner leaks, and a leak reached only
+    // by the alpha share is costly), and a vertex on a straight side (collinear to rounding)
+    // would make the polygon's edges ill-defined.
+    let (small, mut budget) = (2e-3 * area(&hull), 1e-2 * area(&hull));
     while hull.len() > 3 {
         let n = hull.len();
         let best = (0..n)
@@ -546,7 +553,8 @@ fn enclosing_polygon(mut hull: Vec<DVec2>, max: usize) -> Vec<DVec2> {
             })
             .min_by(|a, b| a.0.total_cmp(&b.0));
         match best {
-            Some((added, i, x)) if n > max || added <= negligible => {
+            Some((added, i, x)) if n > max || (added <= small && added <= budget) => {
+                budget -= added;
                 hull[i] = x;
                 hull.remove((i + 1) % n);
             }
@@ -843,7 +851,16 @@ pub struct SourceCheck {
     pub leak: f32,
     /// The standard error of `leak`.
     pub leak_error: f32,
+    /// Rays drawn.
+    pub rays: usize,
+    /// The share of the light that gets out at all (for a light, `through + leak`; for the
+    /// sky, the cosine-weighted share of directions from the points seen that escape): how
+    /// much of what light sampling draws is of use.
+    pub reach: f32,
     pub portals: Vec<PortalUse>,
+    /// The openings the leak passes, each carrying more than the check's noise and 1% of the
+    /// light that leaves (corners, counter-clockwise about the side the light leaves to).
+    pub leaking: Vec<Vec<Vec3>>,
     /// What finding the openings noted (for the leak's completeness).
     pub notes: Vec<String>,
     pub complete: bool,
@@ -938,8 +955,11 @@ pub fn check_light(scene: &Scene, index: usize, found: &Openings, seed: u64) -> 
         .collect();
     let mut rng = Rng::keyed(seed, &[0x504f_5254, index as u64]);
     let (mut through, mut wrong) = (vec![0u32; portals.len()], vec![0u32; portals.len()]);
-    let mut leaks = 0u32;
-    for _ in 0..CHECK_RAYS {
+    // Per found opening: the rays that leave through it past every portal.
+    let mut leaks = vec![0u32; openings.len()];
+    let (mut drawn, mut out) = (0usize, 0usize);
+    while drawn < CHECK_MAX_RAYS && out < CHECK_LEAVING_RAYS {
+        drawn += 1;
         let u = rng.uniform2();
         let Some(point) = light.sample_point(u) else {
             continue;
@@ -954,18 +974,17 @@ pub fn check_light(scene: &Scene, index: usize, found: &Openings, seed: u64) -> 
         // Where it leaves through a found opening, if it does before it stops.
         let leaves_at = openings
             .iter()
-            .filter_map(|(polygon, size)| {
+            .enumerate()
+            .filter_map(|(k, (polygon, size))| {
                 let t = polygon.intersect(o, d)?;
                 // Out only if it goes on past the opening's plane (a ray that meets the rim
                 // itself, in the polygon's hair of margin, stays in).
-                (t + 1e-3 * size < t_hit).then_some(t + 0.5 * size)
+                (t + 1e-3 * size < t_hit).then_some((t + 0.5 * size, k))
             })
-            .fold(None, |best: Option<f32>, t| {
-                Some(best.map_or(t, |b| b.min(t)))
-            });
+            .min_by(|a, b| a.0.total_cmp(&b.0));
         // A portal counts if it is passed before the light is out of its opening (with half
         // the opening's size to spare: a portal a little outside the rim still serves).
-        let limit = leaves_at.unwrap_or(t_hit).min(t_hit);
+        let limit = leaves_at.map_or(t_hit, |(t, _)| t).min(t_hit);
         let mut first: Option<(f32, usize, bool)> = None;
         for (k, portal) in portals.iter().enumerate() {
             if let Some(t) = portal.polygon.intersect(o, d)
@@ -975,20 +994,28 @@ pub fn check_light(scene: &Scene, index: usize, found: &Openings, seed: u64) -> 
                 first = Some((t, k, d.dot(portal.polygon.normal()) > 0.0));
             }
         }
-        match first {
-            Some((_, k, true)) => through[k] += 1,
-            Some((_, k, false)) => {
-                wrong[k] += 1;
-                leaks += u32::from(leaves_at.is_some());
-            }
-            None => leaks += u32::from(leaves_at.is_some()),
+        if let Some((_, k, true)) = first {
+            through[k] += 1;
+            out += 1;
+            continue;
+        }
+        if let Some((_, k, false)) = first {
+            wrong[k] += 1;
+        }
+        if let Some((_, k)) = leaves_at {
+            leaks[k] += 1;
+            out += 1;
         }
     }
-    let n = CHECK_RAYS as f32;
-    let leak = leaks as f32 / n;
+    let n = drawn.max(1) as f32;
+    let leak = leaks.iter().sum::<u32>() as f32 / n;
+    let shares: Vec<f32> = leaks.iter().map(|&l| l as f32 / n).collect();
+    let leaking = leaking_openings(&found.openings, &shares, |s| (s * (1.0 - s) / n).sqrt());
     SourceCheck {
         source: Source::Light(index),
         name: light.name.clone(),
+        rays: drawn,
+        reach: out as f32 / n,
         through: through.iter().sum::<u32>() as f32 / n,
         leak,
         leak_error: (leak * (1.0 - leak) / n).sqrt(),
@@ -1002,6 +1029,7 @@ pub fn check_light(scene: &Scene, index: usize, found: &Openings, seed: u64) -> 
                 wrong_way: wrong[k] as f32 / n,
             })
             .collect(),
+        leaking,
         notes: found.notes.clone(),
         complete: found.complete,
     }
@@ -1024,20 +1052,38 @@ pub fn check_sky(scene: &Scene, seed: u64) -> SourceCheck {
                 .any(|w| w.polygon.intersect(eye, d).is_some_and(|tw| tw < t))
         })
         .collect();
+    let found = sky_openings(scene);
+    let openings: Vec<ConvexPolygon> = found
+        .openings
+        .iter()
+        .filter_map(|o| ConvexPolygon::new(&o.corners).ok())
+        .collect();
+    let mut leaks = vec![0f64; found.openings.len()];
     let mut rng = Rng::keyed(seed, &[0x534b_59, 0]);
     let (mut through, mut wrong) = (vec![0f64; windows.len()], vec![0f64; windows.len()]);
     let (mut total, mut leak) = (0f64, 0f64);
     let (mut squares, mut leak_squares) = (0f64, 0f64);
-    for &(p, n) in &inside {
+    let (mut drawn, mut escaped) = (0usize, 0usize);
+    // Passes over the points, each ray a cosine-distributed direction, until enough escape.
+    let rays = inside.iter().flat_map(|&(p, n)| {
         let frame = Frame::from_normal(n);
-        for _ in 0..SKY_RAYS_PER_POINT {
-            let d = frame.to_world(sample_cosine_hemisphere(Vec2::new(
-                rng.uniform(),
-                rng.uniform(),
-            )));
+        std::iter::repeat_n((p, frame), SKY_RAYS_PER_POINT)
+    });
+    let passes = CHECK_MAX_RAYS / (inside.len() * SKY_RAYS_PER_POINT).max(1);
+    for (p, frame) in rays
+        .cycle()
+        .take(passes * inside.len() * SKY_RAYS_PER_POINT)
+    {
+        if escaped >= CHECK_LEAVING_RAYS && drawn % (inside.len() * SKY_RAYS_PER_POINT) == 0 {
+            break;
+        }
+        drawn += 1;
+        {
+            let d = frame.to_world(sample_cosine_hemisphere(rng.uniform2()));
             if geometry.bvh.occluded(p, d, 0.0, f32::INFINITY) {
                 continue;
             }
+            escaped += 1;
             let w = f64::from(luminance(sky_radiance(scene, d)));
             total += w;
             squares += w * w;
@@ -1058,6 +1104,14 @@ pub fn check_sky(scene: &Scene, seed: u64) -> SourceCheck {
                     }
                     leak += w;
                     leak_squares += w * w;
+                    let out = openings
+                        .iter()
+                        .enumerate()
+                        .filter_map(|(k, o)| Some((o.intersect(p, d)?, k)))
+                        .min_by(|a, b| a.0.total_cmp(&b.0));
+                    if let Some((_, k)) = out {
+                        leaks[k] += w;
+                    }
                 }
             }
         }
@@ -1071,6 +1125,8 @@ pub fn check_sky(scene: &Scene, seed: u64) -> SourceCheck {
     SourceCheck {
         source: Source::Environment,
         name: ENVIRONMENT_TARGET.to_owned(),
+        rays: drawn,
+        reach: escaped as f32 / drawn.max(1) as f32,
         through: (through.iter().sum::<f64>() / total) as f32,
         leak: share as f32,
         leak_error: leak_error as f32,
@@ -1084,23 +1140,51 @@ pub fn check_sky(scene: &Scene, seed: u64) -> SourceCheck {
                 wrong_way: (wrong[k] / total) as f32,
             })
             .collect(),
-        notes: Vec::new(),
+        leaking: leaking_openings(
+            &found.openings,
+            &leaks.iter().map(|l| (l / total) as f32).collect::<Vec<_>>(),
+            |_| leak_error as f32,
+        ),
+        notes: found.notes,
         complete: true,
     }
 }
 
-/// The alpha for a measured leak fraction `leak` (of the light that leaves, the share that
-/// passes no portal; `docs/method.md` §11.3): the α minimising
-/// `leak / α + (1 − leak) / (1 − α)`, at least [`MIN_AUTO_ALPHA`]; not below the default when
-/// some of the light leaves where the check could not measure it.
-pub fn auto_alpha(leak: f32, complete: bool) -> f32 {
+/// The openings whose leak `shares` are above three standard errors (`error` of a share) and
+/// 1% of the light.
+fn leaking_openings(
+    openings: &[Opening],
+    shares: &[f32],
+    error: impl Fn(f32) -> f32,
+) -> Vec<Vec<Vec3>> {
+    openings
+        .iter()
+        .zip(shares)
+        .filter(|&(_, &s)| s > 3.0 * error(s) && s > MIN_OPENING_SHARE)
+        .map(|(o, _)| o.corners.clone())
+        .collect()
+}
+
+/// The alpha for a measured leak fraction `leak` (of the light that gets out, the share that
+/// passes no portal) when a share `reach` of what light sampling draws gets out at all
+/// (`docs/method.md` §11.3): the α minimising `(leak / reach) / α + (1 − leak) / (1 − α)`, at
+/// least [`MIN_AUTO_ALPHA`]; not below the default when some of the light gets out where the
+/// check could not measure it.
+pub fn auto_alpha(leak: f32, reach: f32, complete: bool) -> f32 {
     let leak = leak.clamp(0.0, 1.0);
-    let (a, b) = (leak.sqrt(), (1.0 - leak).sqrt());
+    let (a, b) = ((leak / reach.max(1e-6)).sqrt(), (1.0 - leak).sqrt());
     let best = (a / (a + b)).max(MIN_AUTO_ALPHA);
     if complete {
         best
     } else {
         best.max(DEFAULT_PORTAL_ALPHA)
+    }
+}
+
+impl SourceCheck {
+    /// The alpha `auto` gives this light's portals (or the windows).
+    pub fn auto_alpha(&self) -> f32 {
+        auto_alpha(self.leak_fraction(), self.reach, self.complete)
     }
 }
 
@@ -1120,7 +1204,7 @@ impl Scene {
             .into_par_iter()
             .map(|i| {
                 let check = check_light(scene, i, &light_openings(scene, i), seed);
-                (i, auto_alpha(check.leak_fraction(), check.complete))
+                (i, check.auto_alpha())
             })
             .collect();
         for (i, alpha) in alphas {
@@ -1134,8 +1218,7 @@ impl Scene {
             }
         }
         if self.windows.iter().any(|w| w.alpha_pending) {
-            let check = check_sky(self, seed);
-            let alpha = auto_alpha(check.leak_fraction(), check.complete);
+            let alpha = check_sky(self, seed).auto_alpha();
             for w in self.windows.iter_mut().filter(|w| w.alpha_pending) {
                 w.alpha = alpha;
                 w.alpha_pending = false;
