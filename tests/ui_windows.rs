@@ -493,8 +493,8 @@ fn find_and_check_portals_from_the_panel() {
     });
     h.get_by_label_contains("faces the wrong way");
 
-    // Undo (flip, then find) restores the hand-placed window.
-    for _ in 0..2 {
+    // Undo (the flip, the found portals, the deletion) restores the hand-placed window.
+    for _ in 0..3 {
         h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Z);
         h.run_steps(2);
     }

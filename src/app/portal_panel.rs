@@ -101,6 +101,23 @@ impl PortalViewApp {
         // itself, and a comparison that always differs restarts the render every frame).
         let (mut moved, mut turned) = (false, false);
         let mut alpha = editor.portals[i].alpha;
+        let mut auto = editor.portals[i].auto_alpha;
+        let mut auto_changed = false;
+        // The alpha the render uses for `auto`, once the background build has measured it.
+        let measured = current
+            .rendered
+            .portals
+            .iter()
+            .find(|p| p.desc_index == i)
+            .map(|p| (p.alpha, p.alpha_pending))
+            .or_else(|| {
+                let w = current
+                    .rendered
+                    .windows
+                    .iter()
+                    .find(|w| w.desc_index == i)?;
+                Some((w.alpha, w.alpha_pending))
+            });
         egui::Grid::new("portal fields")
             .num_columns(2)
             .show(ui, |ui| {
@@ -154,23 +171,46 @@ impl PortalViewApp {
                     moved = true;
                 }
                 ui.end_row();
+                // The alpha and its auto switch on rows of their own: a wider row would widen
+                // the panel, whose width must not depend on what is selected.
                 let label = ui.label("alpha");
-                let r = ui
-                    .add(egui::Slider::new(&mut alpha, 0.0..=1.0))
-                    .labelled_by(label.id);
-                gesture |= r.drag_started() || r.gained_focus();
-                moved |= r.changed();
+                if auto {
+                    ui.label(match measured {
+                        Some((a, false)) => format!("{a:.3} (auto)"),
+                        Some((_, true)) => "auto: measuring…".to_owned(),
+                        None => "auto".to_owned(),
+                    });
+                } else {
+                    let r = ui
+                        .add(egui::Slider::new(&mut alpha, 0.0..=1.0))
+                        .labelled_by(label.id);
+                    gesture |= r.drag_started() || r.gained_focus();
+                    moved |= r.changed();
+                }
+                ui.end_row();
+                ui.label("");
+                auto_changed = ui
+                    .checkbox(&mut auto, "auto")
+                    .on_hover_text(
+                        "Alpha measured from the portals' leak before rendering: small where they \
+                         cover every opening, larger where light leaks past them",
+                    )
+                    .changed();
                 ui.end_row();
             });
         if turned {
             pose.rotation = Quat::from_euler(glam::EulerRot::XYZ, ex, ey, ez);
         }
-        if gesture {
+        if gesture || auto_changed {
             editor.checkpoint();
         }
         if moved || turned {
             editor.set_pose(i, pose);
             editor.portals[i].alpha = alpha;
+            commands.push(Command::PortalEdited);
+        }
+        if auto_changed {
+            editor.portals[i].auto_alpha = auto;
             commands.push(Command::PortalEdited);
         }
         ui.horizontal(|ui| {

@@ -444,7 +444,7 @@ fn fit_plane(points: &[Vec3]) -> Option<(DVec3, DVec3, Vec<Vec3>)> {
         // The normal is the covariance's least eigenvector: inverse iteration, with a
         // regularisation that keeps a perfectly flat rim's matrix invertible.
         let trace = m.x_axis.x + m.y_axis.y + m.z_axis.z;
-        if !(trace > 0.0) {
+        if trace.is_nan() || trace <= 0.0 {
             return None;
         }
         let inverse = (m + DMat3::from_diagonal(DVec3::splat(1e-9 * trace))).inverse();
@@ -1059,7 +1059,7 @@ pub fn check_sky(scene: &Scene, seed: u64) -> SourceCheck {
         .filter_map(|o| ConvexPolygon::new(&o.corners).ok())
         .collect();
     let mut leaks = vec![0f64; found.openings.len()];
-    let mut rng = Rng::keyed(seed, &[0x534b_59, 0]);
+    let mut rng = Rng::keyed(seed, &[0x0053_4b59, 0]);
     let (mut through, mut wrong) = (vec![0f64; windows.len()], vec![0f64; windows.len()]);
     let (mut total, mut leak) = (0f64, 0f64);
     let (mut squares, mut leak_squares) = (0f64, 0f64);
