@@ -539,6 +539,41 @@ fn blender_style_portal_extras() {
     let _ = fs::remove_dir_all(&dir);
 }
 
+/// `portal_light_probability` as a scene extra is the alpha of the portals without their own;
+/// `"auto"` (there or on a node) asks for the measured alpha; a bad value names the scene.
+#[test]
+fn scene_portal_alpha_and_auto() {
+    let dir = temp_dir("scene_alpha");
+    let path = write_blender_style(&dir, "blender.gltf");
+    let mut doc: Value = serde_json::from_slice(&fs::read(&path).unwrap()).unwrap();
+    doc["scenes"][0]["extras"] = json!({"portal_light_probability": "auto"});
+    write_json(&path, &doc);
+    let scene = load_gltf(&path).unwrap();
+    let (own, default) = (&scene.portals[0], &scene.portals[1]);
+    assert!(
+        !own.auto_alpha && (own.alpha - 0.3).abs() < EPS,
+        "its own alpha"
+    );
+    assert!(default.auto_alpha, "the scene's auto");
+
+    doc["scenes"][0]["extras"] = json!({"portal_light_probability": 0.25});
+    doc["nodes"][2]["extras"]["portal_light_probability"] = json!("auto");
+    write_json(&path, &doc);
+    let scene = load_gltf(&path).unwrap();
+    assert!(scene.portals[0].auto_alpha, "the node's auto");
+    assert!(!scene.portals[1].auto_alpha && (scene.portals[1].alpha - 0.25).abs() < EPS);
+
+    doc["scenes"][0]["extras"] = json!({"portal_light_probability": "sometimes"});
+    write_json(&path, &doc);
+    let error = load_gltf(&path).unwrap_err().to_string();
+    assert!(
+        error.contains("blender.gltf")
+            && error.contains("scene 0, extras.portal_light_probability"),
+        "{error}"
+    );
+    let _ = fs::remove_dir_all(&dir);
+}
+
 #[test]
 fn unread_extensions_and_textures_are_warnings_naming_the_file() {
     let dir = temp_dir("unread");

@@ -594,6 +594,8 @@ impl PortalViewApp {
         self.settings.scene = name;
         self.editor = PortalEditor::new(&scene);
         self.current = Some(Current::new(scene));
+        // Portals found or checked for the previous scene are not this one's.
+        self.portal_job = None;
         self.builder.forget();
         self.overlay_portal = None;
         self.environment_dirty = false;

@@ -744,7 +744,7 @@ pub fn convex_hull_in_plane(points: &[Vec3], n: Vec3) -> Verts {
 }
 
 /// Andrew's monotone chain; counter-clockwise, without collinear points.
-fn convex_hull_2d(mut points: Vec<Vec2>) -> Vec<Vec2> {
+pub fn convex_hull_2d(mut points: Vec<Vec2>) -> Vec<Vec2> {
     points.sort_by(|a, b| a.x.total_cmp(&b.x).then(a.y.total_cmp(&b.y)));
     points.dedup();
     if points.len() < 3 {

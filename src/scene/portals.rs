@@ -26,7 +26,7 @@ use super::opening::wall_axes;
 use crate::asset::desc::{DEFAULT_PORTAL_ALPHA, PortalDesc};
 use crate::asset::environment::ENVIRONMENT_TARGET;
 use crate::light::area::luminance;
-use crate::sampling::polygon::{ConvexPolygon, MAX_POLYGON_VERTICES};
+use crate::sampling::polygon::{ConvexPolygon, MAX_POLYGON_VERTICES, convex_hull_2d};
 use crate::sampling::{Frame, Rng, sample_cosine_hemisphere};
 
 /// The panorama's cells: 1° in longitude and in colatitude.
@@ -482,35 +482,6 @@ fn fit_plane(points: &[Vec3]) -> Option<(DVec3, DVec3, Vec<Vec3>)> {
     (kept.len() * 10 >= points.len() * 8 && rms <= 0.02 * size).then_some((n, c, kept))
 }
 
-/// The convex hull of 2D points, counter-clockwise (Andrew's monotone chain).
-fn hull_2d(mut points: Vec<DVec2>) -> Vec<DVec2> {
-    points.sort_by(|a, b| a.x.total_cmp(&b.x).then(a.y.total_cmp(&b.y)));
-    points.dedup();
-    if points.len() < 3 {
-        return points;
-    }
-    let cross = |o: DVec2, a: DVec2, b: DVec2| (a - o).perp_dot(b - o);
-    let mut hull: Vec<DVec2> = Vec::with_capacity(points.len() + 1);
-    for pass in 0..2 {
-        let start = hull.len();
-        let ordered: Box<dyn Iterator<Item = &DVec2>> = if pass == 0 {
-            Box::new(points.iter())
-        } else {
-            Box::new(points.iter().rev())
-        };
-        for &p in ordered {
-            while hull.len() >= start + 2
-                && cross(hull[hull.len() - 2], hull[hull.len() - 1], p) <= 0.0
-            {
-                hull.pop();
-            }
-            hull.push(p);
-        }
-        hull.pop();
-    }
-    hull
-}
-
 /// Where the lines through `a0, a1` and through `b0, b1` meet, if they are not parallel.
 fn meet(a0: DVec2, a1: DVec2, b0: DVec2, b1: DVec2) -> Option<DVec2> {
     let (da, db) = (a1 - a0, b1 - b0);
@@ -605,7 +576,11 @@ fn polygon_in_plane(rim: &[Vec3], n: DVec3, offset: f64) -> Option<Vec<Vec3>> {
         .iter()
         .map(|p| DVec2::new(t.dot(p.as_dvec3() - c), b.dot(p.as_dvec3() - c)))
         .collect();
-    let hull = hull_2d(flat);
+    // The hull in f32: coordinates about the rim's centroid keep it to a micrometre.
+    let hull: Vec<DVec2> = convex_hull_2d(flat.iter().map(|p| p.as_vec2()).collect())
+        .into_iter()
+        .map(|p| p.as_dvec2())
+        .collect();
     if hull.len() < 3 {
         return None;
     }

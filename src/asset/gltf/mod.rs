@@ -407,7 +407,12 @@ mod tests {
             let Value::Object(map) = v else {
                 panic!("object");
             };
-            portal_extras(file, Some(&map), "node 3 \"P\"")
+            portal_extras(
+                file,
+                Some(&map),
+                "node 3 \"P\"",
+                (DEFAULT_PORTAL_ALPHA, false),
+            )
         };
         let ok = parse(serde_json::json!({"portal_target": "L"}));
         assert!(

@@ -313,6 +313,7 @@ impl<'a> Doc<'a> {
         let mut camera = None;
         let mut budget = Budget::default();
         let mut warned_colors = false;
+        let default_alpha = scene_portal_alpha(self.file, self.root)?;
         for visit in visits {
             let Some(node) = self.root.nodes.get(visit.node) else {
                 return Err(self.invalid(format!("node {}", visit.node), "does not exist"));
@@ -323,7 +324,7 @@ impl<'a> Doc<'a> {
             {
                 lamps.push(lamp);
             }
-            if let Some(portal) = portal_extras(self.file, extras.as_ref(), &at)? {
+            if let Some(portal) = portal_extras(self.file, extras.as_ref(), &at, default_alpha)? {
                 portals.push(self.portal(visit, node, &at, portal, &mut budget)?);
                 continue;
             }
@@ -930,11 +931,49 @@ pub(super) struct PortalExtras {
     pub(super) auto_alpha: bool,
 }
 
-/// The portal a node's extras describe, if they name a `portal_target`.
+/// A `portal_light_probability` value at `at`: a number in [0, 1] (not auto), or `"auto"`.
+fn portal_alpha(file: &Path, at: &str, value: &Value) -> Result<(f32, bool), GltfError> {
+    if value.as_str() == Some(AUTO_ALPHA) {
+        return Ok((DEFAULT_PORTAL_ALPHA, true));
+    }
+    match value.as_f64() {
+        Some(a) if (0.0..=1.0).contains(&a) => Ok((a as f32, false)),
+        _ => Err(invalid(
+            file,
+            format!("{at}.{PORTAL_ALPHA_KEY}"),
+            format!("must be a number in [0, 1] or \"{AUTO_ALPHA}\", found {value}"),
+        )),
+    }
+}
+
+/// The alpha of portal nodes without their own `portal_light_probability`: the used scene's
+/// `extras.portal_light_probability`, else the default.
+pub(super) fn scene_portal_alpha(file: &Path, root: &json::Root) -> Result<(f32, bool), GltfError> {
+    let default = (DEFAULT_PORTAL_ALPHA, false);
+    let Some(s) = used_scene(root) else {
+        return Ok(default);
+    };
+    let Some(raw) = root.scenes.get(s).and_then(|scene| scene.extras.as_ref()) else {
+        return Ok(default);
+    };
+    let at = format!("scene {s}, extras");
+    match serde_json::from_str::<Value>(raw.get()) {
+        Ok(Value::Object(map)) => match map.get(PORTAL_ALPHA_KEY) {
+            Some(value) => portal_alpha(file, &at, value),
+            None => Ok(default),
+        },
+        Ok(_) => Ok(default),
+        Err(e) => Err(invalid(file, at, e.to_string())),
+    }
+}
+
+/// The portal a node's extras describe, if they name a `portal_target`; `default_alpha` for
+/// one without its own `portal_light_probability`.
 pub(super) fn portal_extras(
     file: &Path,
     extras: Option<&Map<String, Value>>,
     at: &str,
+    default_alpha: (f32, bool),
 ) -> Result<Option<PortalExtras>, GltfError> {
     let Some(target) = extras.and_then(|e| e.get(PORTAL_TARGET_KEY)) else {
         return Ok(None);
@@ -947,18 +986,8 @@ pub(super) fn portal_extras(
         ));
     };
     let (alpha, auto_alpha) = match extras.and_then(|e| e.get(PORTAL_ALPHA_KEY)) {
-        None => (DEFAULT_PORTAL_ALPHA, false),
-        Some(value) if value.as_str() == Some(AUTO_ALPHA) => (DEFAULT_PORTAL_ALPHA, true),
-        Some(value) => match value.as_f64() {
-            Some(a) if (0.0..=1.0).contains(&a) => (a as f32, false),
-            _ => {
-                return Err(invalid(
-                    file,
-                    format!("{at}, extras.{PORTAL_ALPHA_KEY}"),
-                    format!("must be a number in [0, 1] or \"{AUTO_ALPHA}\", found {value}"),
-                ));
-            }
-        },
+        None => default_alpha,
+        Some(value) => portal_alpha(file, &format!("{at}, extras"), value)?,
     };
     Ok(Some(PortalExtras {
         target: target.to_owned(),
