@@ -347,3 +347,46 @@ fn found_portals_with_auto_alpha_are_unbiased() {
         common::assert_agrees(&format!("{name} found"), &antishadow, &reference, true);
     }
 }
+
+/// `portalview portals --find FILE.glb --out OUT.glb` writes a copy of the file whose BIN chunk
+/// is kept byte for byte (new portal meshes go in as data URIs) and whose portals are the found
+/// ones, alpha `auto`; `--check` on it passes, and on the file with its top portal deleted
+/// fails with the problem.
+#[test]
+fn the_command_line_finds_writes_and_checks() {
+    use clap::Parser;
+    use portalview::cli::{Cli, run};
+    let dir = std::env::temp_dir().join(format!("portalview-find-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let (source, out) = (dir.join("lamp.glb"), dir.join("lamp_portals.glb"));
+    std::fs::copy("assets/lampshade.glb", &source).unwrap();
+    let cli = |args: &[&str]| {
+        let cli =
+            Cli::try_parse_from(std::iter::once("portalview").chain(args.iter().copied())).unwrap();
+        run(cli.command.unwrap())
+    };
+    let (s, o) = (source.to_str().unwrap(), out.to_str().unwrap());
+    cli(&["portals", "--find", s, "--out", o]).unwrap();
+    let bin = |path: &std::path::Path| {
+        let bytes = std::fs::read(path).unwrap();
+        let json = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+        bytes[20 + json..].to_vec()
+    };
+    assert_eq!(bin(&source), bin(&out), "the BIN chunk is kept");
+    let written = portalview::asset::gltf::load_gltf(&out).unwrap();
+    assert_eq!(written.portals.len(), 2);
+    assert!(
+        written
+            .portals
+            .iter()
+            .all(|p| p.auto_alpha && p.node_index.is_some())
+    );
+    cli(&["portals", "--check", o]).unwrap();
+
+    let mut top_only = written.portals.clone();
+    top_only.retain(|p| p.name.ends_with('1'));
+    portalview::asset::gltf::save_portals(&out, &top_only).unwrap();
+    let error = cli(&["portals", "--check", o]).unwrap_err().to_string();
+    assert!(error.contains("1 problem"), "{error}");
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use super::{EnvironmentArgs, open_scene};
-use crate::asset::desc::SceneDesc;
+use crate::asset::desc::{PortalDesc, SceneDesc};
 use crate::asset::gltf;
 use crate::scene::Scene;
 use crate::scene::portals::{self, Found, Source, SourceCheck};
@@ -69,11 +69,22 @@ fn find(name: &str, out: &Path, args: &PortalsArgs) -> Result<()> {
             scene.desc.portals.len()
         );
     }
-    // The found portals must make a valid scene before anything is written.
+    // Only portals that make a valid scene are written; the others are said and left out.
+    let (_, errors) = scene.with_portals_lenient(found.portals.clone());
+    let kept: Vec<PortalDesc> = found
+        .portals
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| !errors.iter().any(|(e, _)| e == i))
+        .map(|(_, p)| p.clone())
+        .collect();
+    for (_, error) in &errors {
+        println!("left out: {error}");
+    }
     let with_found = scene
-        .with_portals(found.portals.clone())
+        .with_portals(kept.clone())
         .with_context(|| format!("{name}: the found portals"))?;
-    write(&scene, &with_found.desc, &found, out)?;
+    write(&scene, &with_found.desc, &kept, out)?;
     println!("wrote {}", out.display());
     let checks = portals::check(&with_found, args.seed);
     println!("\ncheck of the found portals:");
@@ -83,13 +94,28 @@ fn find(name: &str, out: &Path, args: &PortalsArgs) -> Result<()> {
 
 /// Writes the scene with the found portals: into a copy of its glTF file (every other byte
 /// kept), or, for a built-in or another format, as a new `.glb`.
-fn write(scene: &Scene, desc: &SceneDesc, found: &Found, out: &Path) -> Result<()> {
+fn write(scene: &Scene, desc: &SceneDesc, portals: &[PortalDesc], out: &Path) -> Result<()> {
     let same_format = |source: &Path| {
         source.extension().map(|e| e.to_ascii_lowercase())
             == out.extension().map(|e| e.to_ascii_lowercase())
     };
     match &scene.source {
         Some(source) if same_format(source) => {
+            let beside = |p: &Path| {
+                let folder = p.parent().filter(|d| !d.as_os_str().is_empty());
+                folder.unwrap_or(Path::new(".")).canonicalize().ok()
+            };
+            if out
+                .extension()
+                .is_some_and(|e| e.eq_ignore_ascii_case("gltf"))
+                && beside(source) != beside(out)
+            {
+                bail!(
+                    "{}: a .gltf's buffers and images are relative to it, so its copy with the \
+                     found portals must go in the same folder (or write a .glb: the whole scene)",
+                    out.display()
+                );
+            }
             // A temporary copy beside the target, renamed over it once written.
             let mut temporary = out.as_os_str().to_owned();
             temporary.push(".portals-tmp");
@@ -97,7 +123,7 @@ fn write(scene: &Scene, desc: &SceneDesc, found: &Found, out: &Path) -> Result<(
             std::fs::copy(source, &temporary).with_context(|| {
                 format!("copying {} to {}", source.display(), temporary.display())
             })?;
-            let written = gltf::save_portals(&temporary, &found.portals)
+            let written = gltf::save_portals(&temporary, portals)
                 .map_err(anyhow::Error::from)
                 .and_then(|()| {
                     std::fs::rename(&temporary, out)
@@ -108,7 +134,17 @@ fn write(scene: &Scene, desc: &SceneDesc, found: &Found, out: &Path) -> Result<(
             }
             written
         }
-        _ => Ok(gltf::export_glb(desc, out)?),
+        _ if out
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("glb")) =>
+        {
+            Ok(gltf::export_glb(desc, out)?)
+        }
+        _ => bail!(
+            "{}: the scene with its found portals is written as a .glb (or, for a .gltf file, as a \
+             .gltf beside it)",
+            out.display()
+        ),
     }
 }
 
