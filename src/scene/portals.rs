@@ -518,9 +518,15 @@ fn enclosing_polygon(mut hull: Vec<DVec2>, max: usize) -> Vec<DVec2> {
                     hull[(i + 2) % n],
                 );
                 let x = meet(p, a, q, b)?;
-                // x must lie beyond the edge, on the outside, for the result to be convex.
+                // x must lie beyond the edge, on the outside, for the result to be convex; to
+                // rounding, so that a vertex on a straight side (x = a) goes too.
                 let added = 0.5 * (b - a).perp_dot(x - a);
-                (added <= 0.0 && (x - a).dot(a - p) >= 0.0).then_some((-added, i, x))
+                let rounding = 1e-9 * (b - a).length_squared().max((a - p).length_squared());
+                (added <= rounding && (x - a).dot(a - p) >= -rounding).then_some((
+                    added.min(0.0).abs(),
+                    i,
+                    x,
+                ))
             })
             .min_by(|a, b| a.0.total_cmp(&b.0));
         match best {
