@@ -177,7 +177,7 @@ pub struct PortalDesc {
     /// `auto_alpha`, the value used until the check has measured it).
     pub alpha: f32,
     /// `portal_light_probability: "auto"`: alpha follows from the measured leak of the portals
-    /// (`scene::portals::auto_alpha`), once per scene, before rendering.
+    /// (`scene::portals::SourceCheck::auto_alpha`), once per scene, before rendering.
     pub auto_alpha: bool,
     /// The portal mesh's triangles in the node's local space.
     pub local_triangles: Vec<[Vec3; 3]>,

@@ -70,7 +70,8 @@ fn find(name: &str, out: &Path, args: &PortalsArgs) -> Result<()> {
         );
     }
     // Only portals that make a valid scene are written; the others are said and left out.
-    let (_, errors) = scene.with_portals_lenient(found.portals.clone());
+    // (Deferred: only the validation, without measuring the auto alphas twice.)
+    let (_, errors) = scene.with_portals_deferred(found.portals.clone(), None);
     let kept: Vec<PortalDesc> = found
         .portals
         .iter()

@@ -48,7 +48,7 @@ pub struct Portal {
     /// Probability of sampling the light itself instead of the portal.
     pub alpha: f32,
     /// Whether `alpha` is still to be measured (`portal_light_probability: "auto"`, see
-    /// `scene::portals::auto_alpha`); until then it is the default.
+    /// `scene::portals::SourceCheck::auto_alpha`); until then it is the default.
     pub alpha_pending: bool,
     /// The portal, its normal pointing to its front (away from the light).
     pub polygon: ConvexPolygon,

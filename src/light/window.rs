@@ -36,7 +36,7 @@ pub struct Window {
     /// Probability of sampling the environment itself instead of the window.
     pub alpha: f32,
     /// Whether `alpha` is still to be measured (`portal_light_probability: "auto"`, see
-    /// `scene::portals::auto_alpha`); until then it is the default.
+    /// `scene::portals::SourceCheck::auto_alpha`); until then it is the default.
     pub alpha_pending: bool,
     /// The window, its normal pointing to its front (into the room).
     pub polygon: ConvexPolygon,

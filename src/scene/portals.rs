@@ -910,7 +910,7 @@ pub fn check(scene: &Scene, seed: u64) -> Vec<SourceCheck> {
         .map(|i| check_light(scene, i, &light_openings(scene, i), seed))
         .collect();
     if !scene.windows.is_empty() && scene.environment.is_some() {
-        checks.push(check_sky(scene, seed));
+        checks.push(check_sky(scene, &sky_openings(scene).openings, seed));
     }
     checks
 }
@@ -921,7 +921,7 @@ pub fn check_light(scene: &Scene, index: usize, found: &Openings, seed: u64) -> 
     let eps = 1e-4 * scene.geometry.scale();
     let portals: Vec<&crate::light::portal::Portal> =
         scene.portals.iter().filter(|p| p.light == index).collect();
-    let openings: Vec<(ConvexPolygon, f32)> = found
+    let openings: Vec<(ConvexPolygon, f32, &Opening)> = found
         .openings
         .iter()
         .filter_map(|o| {
@@ -931,7 +931,7 @@ pub fn check_light(scene: &Scene, index: usize, found: &Openings, seed: u64) -> 
                 .iter()
                 .map(|c| c.distance(polygon.centroid()))
                 .fold(0.0, f32::max);
-            Some((polygon, size))
+            Some((polygon, size, o))
         })
         .collect();
     let mut rng = Rng::keyed(seed, &[0x504f_5254, index as u64]);
@@ -956,7 +956,7 @@ pub fn check_light(scene: &Scene, index: usize, found: &Openings, seed: u64) -> 
         let leaves_at = openings
             .iter()
             .enumerate()
-            .filter_map(|(k, (polygon, size))| {
+            .filter_map(|(k, (polygon, size, _))| {
                 let t = polygon.intersect(o, d)?;
                 // Out only if it goes on past the opening's plane (a ray that meets the rim
                 // itself, in the polygon's hair of margin, stays in).
@@ -990,8 +990,11 @@ pub fn check_light(scene: &Scene, index: usize, found: &Openings, seed: u64) -> 
     }
     let n = drawn.max(1) as f32;
     let leak = leaks.iter().sum::<u32>() as f32 / n;
-    let shares: Vec<f32> = leaks.iter().map(|&l| l as f32 / n).collect();
-    let leaking = leaking_openings(&found.openings, &shares, |s| (s * (1.0 - s) / n).sqrt());
+    let leaking = leaking_openings(
+        openings.iter().map(|(_, _, o)| *o),
+        leaks.iter().map(|&l| l as f32 / n),
+        |s| (s * (1.0 - s) / n).sqrt(),
+    );
     SourceCheck {
         source: Source::Light(index),
         name: light.name.clone(),
@@ -1018,7 +1021,7 @@ pub fn check_light(scene: &Scene, index: usize, found: &Openings, seed: u64) -> 
 
 /// Rays from the surfaces the camera sees that escape to the sky, weighted by its luminance,
 /// against the windows.
-pub fn check_sky(scene: &Scene, seed: u64) -> SourceCheck {
+pub fn check_sky(scene: &Scene, found: &[Opening], seed: u64) -> SourceCheck {
     let geometry = &scene.geometry;
     let windows = &scene.windows;
     // Points outside (seen through a window) would count their sky as a leak.
@@ -1033,33 +1036,24 @@ pub fn check_sky(scene: &Scene, seed: u64) -> SourceCheck {
                 .any(|w| w.polygon.intersect(eye, d).is_some_and(|tw| tw < t))
         })
         .collect();
-    let found = sky_openings(scene);
-    let openings: Vec<ConvexPolygon> = found
-        .openings
+    let openings: Vec<(ConvexPolygon, &Opening)> = found
         .iter()
-        .filter_map(|o| ConvexPolygon::new(&o.corners).ok())
+        .filter_map(|o| Some((ConvexPolygon::new(&o.corners).ok()?, o)))
         .collect();
-    let mut leaks = vec![0f64; found.openings.len()];
+    let mut leaks = vec![0f64; openings.len()];
     let mut rng = Rng::keyed(seed, &[0x0053_4b59, 0]);
     let (mut through, mut wrong) = (vec![0f64; windows.len()], vec![0f64; windows.len()]);
     let (mut total, mut leak) = (0f64, 0f64);
     let (mut squares, mut leak_squares) = (0f64, 0f64);
     let (mut drawn, mut escaped) = (0usize, 0usize);
-    // Passes over the points, each ray a cosine-distributed direction, until enough escape.
-    let rays = inside.iter().flat_map(|&(p, n)| {
-        let frame = Frame::from_normal(n);
-        std::iter::repeat_n((p, frame), SKY_RAYS_PER_POINT)
-    });
-    let passes = CHECK_MAX_RAYS / (inside.len() * SKY_RAYS_PER_POINT).max(1);
-    for (p, frame) in rays
-        .cycle()
-        .take(passes * inside.len() * SKY_RAYS_PER_POINT)
-    {
-        if escaped >= CHECK_LEAVING_RAYS && drawn % (inside.len() * SKY_RAYS_PER_POINT) == 0 {
-            break;
-        }
-        drawn += 1;
+    // Whole passes over the points (every point weighs the same), until enough rays escape.
+    let pass = inside.len() * SKY_RAYS_PER_POINT;
+    while escaped < CHECK_LEAVING_RAYS && pass > 0 && drawn + pass <= CHECK_MAX_RAYS {
+        for (p, frame) in inside
+            .iter()
+            .flat_map(|&(p, n)| std::iter::repeat_n((p, Frame::from_normal(n)), SKY_RAYS_PER_POINT))
         {
+            drawn += 1;
             let d = frame.to_world(sample_cosine_hemisphere(rng.uniform2()));
             if geometry.bvh.occluded(p, d, 0.0, f32::INFINITY) {
                 continue;
@@ -1088,7 +1082,7 @@ pub fn check_sky(scene: &Scene, seed: u64) -> SourceCheck {
                     let out = openings
                         .iter()
                         .enumerate()
-                        .filter_map(|(k, o)| Some((o.intersect(p, d)?, k)))
+                        .filter_map(|(k, (o, _))| Some((o.intersect(p, d)?, k)))
                         .min_by(|a, b| a.0.total_cmp(&b.0));
                     if let Some((_, k)) = out {
                         leaks[k] += w;
@@ -1122,50 +1116,44 @@ pub fn check_sky(scene: &Scene, seed: u64) -> SourceCheck {
             })
             .collect(),
         leaking: leaking_openings(
-            &found.openings,
-            &leaks.iter().map(|l| (l / total) as f32).collect::<Vec<_>>(),
+            openings.iter().map(|(_, o)| *o),
+            leaks.iter().map(|l| (l / total) as f32),
             |_| leak_error as f32,
         ),
-        notes: found.notes,
+        notes: Vec::new(),
         complete: true,
     }
 }
 
 /// The openings whose leak `shares` are above three standard errors (`error` of a share) and
 /// 1% of the light.
-fn leaking_openings(
-    openings: &[Opening],
-    shares: &[f32],
+fn leaking_openings<'a>(
+    openings: impl Iterator<Item = &'a Opening>,
+    shares: impl Iterator<Item = f32>,
     error: impl Fn(f32) -> f32,
 ) -> Vec<Vec<Vec3>> {
     openings
-        .iter()
         .zip(shares)
-        .filter(|&(_, &s)| s > 3.0 * error(s) && s > MIN_OPENING_SHARE)
+        .filter(|&(_, s)| s > 3.0 * error(s) && s > MIN_OPENING_SHARE)
         .map(|(o, _)| o.corners.clone())
         .collect()
 }
 
-/// The alpha for a measured leak fraction `leak` (of the light that gets out, the share that
-/// passes no portal) when a share `reach` of what light sampling draws gets out at all
-/// (`docs/method.md` §11.3): the α minimising `(leak / reach) / α + (1 − leak) / (1 − α)`, at
-/// least [`MIN_AUTO_ALPHA`]; not below the default when some of the light gets out where the
-/// check could not measure it.
-pub fn auto_alpha(leak: f32, reach: f32, complete: bool) -> f32 {
-    let leak = leak.clamp(0.0, 1.0);
-    let (a, b) = ((leak / reach.max(1e-6)).sqrt(), (1.0 - leak).sqrt());
-    let best = (a / (a + b)).max(MIN_AUTO_ALPHA);
-    if complete {
-        best
-    } else {
-        best.max(DEFAULT_PORTAL_ALPHA)
-    }
-}
-
 impl SourceCheck {
-    /// The alpha `auto` gives this light's portals (or the windows).
+    /// The alpha `auto` gives this light's portals (or the windows; `docs/method.md` §11.3):
+    /// with `ℓ` the leak's share of the light that gets out and `r` the share of what light
+    /// sampling draws that gets out at all, the α minimising `(ℓ/r)/α + (1 − ℓ)/(1 − α)`, at
+    /// least [`MIN_AUTO_ALPHA`]; not below the default when some of the light gets out where the
+    /// check could not measure it.
     pub fn auto_alpha(&self) -> f32 {
-        auto_alpha(self.leak_fraction(), self.reach, self.complete)
+        let leak = self.leak_fraction().clamp(0.0, 1.0);
+        let (a, b) = ((leak / self.reach.max(1e-6)).sqrt(), (1.0 - leak).sqrt());
+        let best = (a / (a + b)).max(MIN_AUTO_ALPHA);
+        if self.complete {
+            best
+        } else {
+            best.max(DEFAULT_PORTAL_ALPHA)
+        }
     }
 }
 
@@ -1199,7 +1187,9 @@ impl Scene {
             }
         }
         if self.windows.iter().any(|w| w.alpha_pending) {
-            let alpha = check_sky(self, seed).auto_alpha();
+            // The sky's leak is measured directly (escaping rays); the windows' openings only
+            // say where it leaks, which alpha does not need.
+            let alpha = check_sky(self, &[], seed).auto_alpha();
             for w in self.windows.iter_mut().filter(|w| w.alpha_pending) {
                 w.alpha = alpha;
                 w.alpha_pending = false;
