@@ -48,7 +48,9 @@ fn emitters(scene: &Scene) -> Vec<PickedLight> {
 /// all lights sum to 1 (or all are 0, where no light can reach and the pick returns none);
 /// the probability a pick returns is exactly the one evaluated for that light (MIS relies on
 /// it); and the picks' frequencies follow the probabilities. The frequency test's tolerance
-/// is 5 standard errors of a multinomial count, `√(N p (1 − p))`, plus one count.
+/// is 5 standard errors of a multinomial count, `√(N p (1 − p))`, plus one count. Half the
+/// points lie in the scene's box, half between a light and one of its portals, inside the
+/// light's enclosure, where its enclosure's part beside the tree counts.
 #[test]
 fn tree_picks_are_a_distribution_that_matches_its_probabilities() {
     for (name, scene) in scenes() {
@@ -57,8 +59,20 @@ fn tree_picks_are_a_distribution_that_matches_its_probabilities() {
         for strategy in Strategy::ALL {
             let sampler = LightSampler::with_selection(&scene, strategy, None, Selection::Tree);
             let mut rng = Rng::new(17, 3);
-            for _ in 0..40 {
-                let x = lo + (hi - lo) * Vec3::new(rng.uniform(), rng.uniform(), rng.uniform());
+            for k in 0..80 {
+                let in_box =
+                    lo + (hi - lo) * Vec3::new(rng.uniform(), rng.uniform(), rng.uniform());
+                let x = match scene.portals.get(k / 2 % scene.portals.len().max(1)) {
+                    Some(portal) if k % 2 == 1 => {
+                        let Some(y) = scene.lights()[portal.light].sample_point(rng.uniform2())
+                        else {
+                            continue;
+                        };
+                        let z = portal.polygon.sample_uniform(rng.uniform2());
+                        y.p.lerp(z, rng.uniform())
+                    }
+                    _ => in_box,
+                };
                 let n = unit(&mut rng);
                 let p: Vec<f32> = all.iter().map(|&l| sampler.probability(l, x, n)).collect();
                 let total: f32 = p.iter().sum();

@@ -212,6 +212,9 @@ pub fn area_light_bounds(light: &AreaLight, share: f32) -> LightBounds {
     }
 }
 
+/// How much an enclosure's box is grown on each side, as a share of its diagonal.
+const ENCLOSURE_PAD: f32 = 1e-3;
+
 /// A light behind portals as it lights its own enclosure (a lampshade's inside, a can's
 /// walls): the light's bounds with its `1 − alpha` share, reaching only points in the box
 /// around the light and its portals. There the estimator samples the light itself, past the
@@ -222,9 +225,12 @@ pub fn enclosure_bounds(light: &AreaLight, portals: &[&ConvexPolygon], share: f3
         .iter()
         .flat_map(|p| p.vertices())
         .fold((own.lo, own.hi), |(lo, hi), &v| (lo.min(v), hi.max(v)));
+    // Grown a little: the enclosure's walls often lie on the box's faces (a can's sides
+    // under its portal's edges), and their points fall either side of them by rounding.
+    let pad = Vec3::splat(ENCLOSURE_PAD * (hi - lo).length());
     LightBounds {
-        lo,
-        hi,
+        lo: lo - pad,
+        hi: hi + pad,
         inside_only: true,
         ..own
     }
@@ -359,6 +365,10 @@ pub struct LightTree {
     area_leaf: Vec<Option<u32>>,
     lamp_leaf: Vec<Option<u32>>,
     environment_leaf: Option<u32>,
+    /// The enclosures' parts (`inside_only`), beside the tree: each is evaluated exactly at
+    /// the point, not through the union bounds of a subtree, which would be as loose as the
+    /// room around it where the enclosure's own part is the brightest by far.
+    enclosures: Vec<(PickedLight, LightBounds)>,
     infinite: Vec<Infinite>,
     /// The scene's only emitter, when it has one: picked with probability 1.
     only: Option<PickedLight>,
@@ -502,19 +512,26 @@ impl LightTree {
             ..LightTree::default()
         };
         let mut entries: Vec<(PickedLight, std::ops::Range<usize>, LightBounds)> = Vec::new();
+        let mut emitters: Vec<PickedLight> = Vec::new();
         for light in lights {
-            let Some(first) = light.parts.first() else {
+            if !light.parts.is_empty() {
+                emitters.push(light.light);
+            }
+            let (enclosures, parts): (Vec<LightBounds>, Vec<LightBounds>) =
+                light.parts.into_iter().partition(|p| p.inside_only);
+            tree.enclosures
+                .extend(enclosures.into_iter().map(|p| (light.light, p)));
+            let Some(first) = parts.first() else {
                 continue;
             };
-            let union = light.parts[1..].iter().fold(*first, |u, p| u.union(p));
+            let union = parts[1..].iter().fold(*first, |u, p| u.union(p));
             let start = tree.parts.len();
-            tree.parts.extend(light.parts);
+            tree.parts.extend(parts);
             entries.push((light.light, start..tree.parts.len(), union));
         }
-        let mut emitters: Vec<PickedLight> = Vec::new();
-        for light in entries
-            .iter()
-            .map(|e| e.0)
+        for light in emitters
+            .split_off(0)
+            .into_iter()
             .chain(tree.infinite.iter().map(Infinite::light))
         {
             if !emitters.contains(&light) {
@@ -603,8 +620,8 @@ impl LightTree {
         }
     }
 
-    /// The tree's weight and the sum of every weight at the top level (the tree and the
-    /// emitters beside it).
+    /// The tree's weight and the sum of every weight at the top level (the tree, the
+    /// enclosures and the emitters beside it).
     #[inline(always)]
     fn top_weights(&self, x: Vec3, n: Vec3) -> (f32, f32) {
         let tree = if self.nodes.is_empty() {
@@ -612,8 +629,31 @@ impl LightTree {
         } else {
             self.node_importance(0, x, n)
         };
-        let total = tree + self.infinite.iter().map(|e| e.importance(n)).sum::<f32>();
+        let enclosures = self
+            .enclosures
+            .iter()
+            .map(|(_, b)| b.importance(x, n))
+            .sum::<f32>();
+        let total = tree + enclosures + self.infinite.iter().map(|e| e.importance(n)).sum::<f32>();
         (tree, total)
+    }
+
+    /// The probability of picking `light` beside the tree: through its enclosures and as an
+    /// emitter beside it, of `total` (`top_weights`'s).
+    #[inline(always)]
+    fn beside_probability(&self, light: PickedLight, x: Vec3, n: Vec3, total: f32) -> f32 {
+        let mut p = 0.0;
+        for (l, b) in &self.enclosures {
+            if *l == light {
+                p += b.importance(x, n) / total;
+            }
+        }
+        for e in &self.infinite {
+            if e.light() == light {
+                p += e.importance(n) / total;
+            }
+        }
+        p
     }
 
     /// Picks a light for a point `x` with normal `n` (facing the side light is gathered from),
@@ -632,10 +672,14 @@ impl LightTree {
             // Beside the tree: the last with a weight takes what rounding leaves over.
             u -= tree;
             let mut picked = None;
-            for e in &self.infinite {
-                let w = e.importance(n);
+            let weights = self
+                .enclosures
+                .iter()
+                .map(|(l, b)| (*l, b.importance(x, n)))
+                .chain(self.infinite.iter().map(|e| (e.light(), e.importance(n))));
+            for (light, w) in weights {
                 if w > 0.0 {
-                    picked = Some(e.light());
+                    picked = Some(light);
                     if u < w {
                         break;
                     }
@@ -653,13 +697,12 @@ impl LightTree {
         loop {
             match self.nodes[i].kind {
                 NodeKind::Leaf(leaf) => {
+                    // Its share beside the tree counts too, added as `probability` adds it.
                     let light = self.leaves[leaf as usize].light;
-                    if light == PickedLight::Environment {
-                        // Its share beside the tree counts too.
-                        return Some((light, self.probability(light, x, n)));
-                    }
-                    let p = tree / total * p;
-                    return (p > 0.0).then_some((light, p));
+                    let mut p_light = 0.0;
+                    p_light += tree / total * p;
+                    p_light += self.beside_probability(light, x, n, total);
+                    return (p_light > 0.0).then_some((light, p_light));
                 }
                 NodeKind::Interior(second) => {
                     let (a, b) = (i + 1, second as usize);
@@ -713,12 +756,7 @@ impl LightTree {
         if let Some(leaf) = leaf {
             p += tree / total * self.trail_probability(leaf as usize, x, n);
         }
-        for e in &self.infinite {
-            if e.light() == light {
-                p += e.importance(n) / total;
-            }
-        }
-        p
+        p + self.beside_probability(light, x, n, total)
     }
 
     /// The probability of reaching leaf `leaf` from the root.
@@ -775,11 +813,16 @@ impl LightTree {
                 }
             }
         }
-        for e in &self.infinite {
-            let p = e.importance(n) / total;
-            match out.iter_mut().find(|(light, _)| *light == e.light()) {
+        let beside = self
+            .enclosures
+            .iter()
+            .map(|(l, b)| (*l, b.importance(x, n)))
+            .chain(self.infinite.iter().map(|e| (e.light(), e.importance(n))));
+        for (light, w) in beside {
+            let p = w / total;
+            match out.iter_mut().find(|(l, _)| *l == light) {
                 Some((_, q)) => *q += p,
-                None => out.push((e.light(), p)),
+                None => out.push((light, p)),
             }
         }
         out
