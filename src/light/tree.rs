@@ -558,8 +558,9 @@ impl LightTree {
         tree
     }
 
-    /// Appends the subtree over `order`'s entries, split at the median of their centres along
-    /// the widest axis, and returns its root's index.
+    /// Appends the subtree over `order`'s entries, split where [`saoh_split`] finds it cheapest
+    /// (at the median of their centres along the widest axis where it finds no split), and
+    /// returns its root's index.
     fn build(
         &mut self,
         entries: &[(PickedLight, std::ops::Range<usize>, LightBounds)],
@@ -585,21 +586,30 @@ impl LightTree {
             });
             return index;
         }
-        let (lo, hi) = order
-            .iter()
-            .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), &i| {
-                let c = entries[i].2.centroid();
-                (lo.min(c), hi.max(c))
-            });
-        let axis = (hi - lo).max_position();
-        order.sort_by(|&a, &b| {
-            entries[a].2.centroid()[axis].total_cmp(&entries[b].2.centroid()[axis])
-        });
+        let mid = match saoh_split(entries, order, &bounds) {
+            Some(mid) => mid,
+            None => {
+                let (lo, hi) =
+                    order
+                        .iter()
+                        .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), &i| {
+                            let c = entries[i].2.centroid();
+                            (lo.min(c), hi.max(c))
+                        });
+                let axis = (hi - lo).max_position();
+                order.sort_by(|&a, &b| {
+                    entries[a].2.centroid()[axis]
+                        .total_cmp(&entries[b].2.centroid()[axis])
+                        .then(a.cmp(&b))
+                });
+                order.len() / 2
+            }
+        };
         self.nodes.push(Node {
             bounds,
             kind: NodeKind::Interior(0),
         });
-        let (first, second) = order.split_at_mut(order.len() / 2);
+        let (first, second) = order.split_at_mut(mid);
         self.build(entries, first, trail, depth + 1);
         let second_index = self.build(entries, second, trail | (1 << depth), depth + 1);
         self.nodes[index].kind = NodeKind::Interior(second_index as u32);
@@ -835,6 +845,91 @@ impl LightTree {
             self.leaves.iter().map(|l| l.depth).max().unwrap_or(0),
         )
     }
+}
+
+/// Buckets per axis of [`saoh_split`] (pbrt-v4's).
+const SAOH_BUCKETS: usize = 12;
+
+/// The surface area orientation heuristic's split of `order`'s entries (Conty Estevez &
+/// Kulla 2018, as pbrt-v4's `BVHLightSampler` builds it): over 12 buckets of the centres along
+/// each axis, the split that minimises each side's intensity × the solid angle its cones can
+/// light (`M_Ω`) × its box's surface area, stretched by how thin `bounds` is along the axis.
+/// Sorts `order` so that the first `k` entries form one side and returns `k`; `None` where no
+/// axis separates the centres.
+fn saoh_split(
+    entries: &[(PickedLight, std::ops::Range<usize>, LightBounds)],
+    order: &mut [usize],
+    bounds: &LightBounds,
+) -> Option<usize> {
+    let (lo, hi) = order
+        .iter()
+        .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), &i| {
+            let c = entries[i].2.centroid();
+            (lo.min(c), hi.max(c))
+        });
+    let extent = bounds.hi - bounds.lo;
+    let bucket = |i: usize, axis: usize| -> usize {
+        let t = (entries[i].2.centroid()[axis] - lo[axis]) / (hi[axis] - lo[axis]);
+        ((t * SAOH_BUCKETS as f32) as usize).min(SAOH_BUCKETS - 1)
+    };
+    let mut best: Option<(f32, usize, usize)> = None;
+    for axis in 0..3 {
+        if hi[axis] - lo[axis] <= 0.0 {
+            continue;
+        }
+        let mut buckets: [Option<LightBounds>; SAOH_BUCKETS] = [None; SAOH_BUCKETS];
+        for &i in order.iter() {
+            let b = &mut buckets[bucket(i, axis)];
+            *b = Some(b.map_or(entries[i].2, |u| u.union(&entries[i].2)));
+        }
+        // Kr: a split across a thin box's short side costs more.
+        let kr = extent.max_element() / extent[axis].max(1e-6 * extent.max_element());
+        let union = |range: &[Option<LightBounds>]| {
+            range
+                .iter()
+                .flatten()
+                .fold(None, |u: Option<LightBounds>, b| {
+                    Some(u.map_or(*b, |u| u.union(b)))
+                })
+        };
+        for split in 0..SAOH_BUCKETS - 1 {
+            let (Some(below), Some(above)) =
+                (union(&buckets[..=split]), union(&buckets[split + 1..]))
+            else {
+                continue;
+            };
+            let cost = kr * (saoh_cost(&below) + saoh_cost(&above));
+            if best.is_none_or(|(c, _, _)| cost < c) {
+                best = Some((cost, axis, split));
+            }
+        }
+    }
+    let (_, axis, split) = best?;
+    // Stable: entries of one bucket keep their order, whatever rounding did to their centres.
+    order.sort_by_key(|&i| (bucket(i, axis) > split, i));
+    let k = order.iter().filter(|&&i| bucket(i, axis) <= split).count();
+    (0 < k && k < order.len()).then_some(k)
+}
+
+/// One side's cost in [`saoh_split`]: intensity × `M_Ω` × the box's surface area, `M_Ω` the
+/// cosine-weighted solid angle the cone (`θ_o`, widened by `θ_e`) can send light into.
+fn saoh_cost(b: &LightBounds) -> f32 {
+    use std::f32::consts::PI;
+    let theta_o = if b.two_sided {
+        PI
+    } else {
+        b.cos_o.clamp(-1.0, 1.0).acos()
+    };
+    let theta_e = b.cos_e.clamp(-1.0, 1.0).acos();
+    let theta_w = (theta_o + theta_e).min(PI);
+    let (sin_o, cos_o) = theta_o.sin_cos();
+    let m_omega = 2.0 * PI * (1.0 - cos_o)
+        + PI / 2.0
+            * (2.0 * theta_w * sin_o - (theta_o - 2.0 * theta_w).cos() - 2.0 * theta_o * sin_o
+                + cos_o);
+    let d = b.hi - b.lo;
+    let area = 2.0 * (d.x * d.y + d.y * d.z + d.z * d.x);
+    b.intensity * m_omega * area
 }
 
 /// A portal as its light's light leaves it: from the portal's box, along the directions from
