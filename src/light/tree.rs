@@ -10,7 +10,8 @@
 //! reach keeps a
 //! positive probability, through a portal's part or through the light's own, so a misplaced
 //! portal costs variance, never bias. The environment behind windows is a leaf of its
-//! windows in the same way; its `alpha` share, and directional lamps, stand beside the tree.
+//! windows in the same way; its `alpha` share, and directional lamps, stand beside the tree,
+//! and so do the enclosures' parts, each evaluated exactly where it counts.
 //!
 //! A node's importance at a point `x` with normal `n` is pbrt-v4's `LightBounds::Importance`:
 //! intensity × the cosine of the angle by which the point lies outside the emission cone,
@@ -52,8 +53,8 @@ pub struct LightBounds {
     pub intensity: f32,
     /// Emits on both sides of its normals.
     pub two_sided: bool,
-    /// Reaches only points inside the box (a light's own enclosure, [`enclosure_bounds`]).
-    pub inside_only: bool,
+    /// Reaches only points inside this box (a light's own enclosure, [`enclosure_bounds`]).
+    pub within: Option<(Vec3, Vec3)>,
 }
 
 /// `√max(0, x)`.
@@ -90,7 +91,9 @@ impl LightBounds {
         if self.intensity <= 0.0 {
             return 0.0;
         }
-        if self.inside_only && !(x.cmpge(self.lo).all() && x.cmple(self.hi).all()) {
+        if let Some((lo, hi)) = self.within
+            && !(x.cmpge(lo).all() && x.cmple(hi).all())
+        {
             return 0.0;
         }
         let centre = 0.5 * (self.lo + self.hi);
@@ -147,7 +150,10 @@ impl LightBounds {
             cos_e: self.cos_e.min(other.cos_e),
             intensity: self.intensity + other.intensity,
             two_sided: self.two_sided || other.two_sided,
-            inside_only: self.inside_only && other.inside_only,
+            within: self
+                .within
+                .zip(other.within)
+                .map(|((a, b), (c, d))| (a.min(c), b.max(d))),
         }
     }
 
@@ -208,7 +214,7 @@ pub fn area_light_bounds(light: &AreaLight, share: f32) -> LightBounds {
         cos_e: 0.0,
         intensity: share * luminance(light.radiance) * light.area(),
         two_sided: light.double_sided,
-        inside_only: false,
+        within: None,
     }
 }
 
@@ -216,9 +222,11 @@ pub fn area_light_bounds(light: &AreaLight, share: f32) -> LightBounds {
 const ENCLOSURE_PAD: f32 = 1e-3;
 
 /// A light behind portals as it lights its own enclosure (a lampshade's inside, a can's
-/// walls): the light's bounds with its `1 − alpha` share, reaching only points in the box
+/// walls): the light's own bounds with its `1 − alpha` share, reaching only points in the box
 /// around the light and its portals. There the estimator samples the light itself, past the
-/// portals, and the portals' parts are 0 (the points are behind them).
+/// portals, and the portals' parts are 0 (the points are behind them). The importance is the
+/// light's own, not that of the larger box: a shade's outside lies in the box too, and there
+/// the light is behind the surface, which only its own box can tell.
 pub fn enclosure_bounds(light: &AreaLight, portals: &[&ConvexPolygon], share: f32) -> LightBounds {
     let own = area_light_bounds(light, share);
     let (lo, hi) = portals
@@ -229,9 +237,7 @@ pub fn enclosure_bounds(light: &AreaLight, portals: &[&ConvexPolygon], share: f3
     // under its portal's edges), and their points fall either side of them by rounding.
     let pad = Vec3::splat(ENCLOSURE_PAD * (hi - lo).length());
     LightBounds {
-        lo: lo - pad,
-        hi: hi + pad,
-        inside_only: true,
+        within: Some((lo - pad, hi + pad)),
         ..own
     }
 }
@@ -365,9 +371,9 @@ pub struct LightTree {
     area_leaf: Vec<Option<u32>>,
     lamp_leaf: Vec<Option<u32>>,
     environment_leaf: Option<u32>,
-    /// The enclosures' parts (`inside_only`), beside the tree: each is evaluated exactly at
-    /// the point, not through the union bounds of a subtree, which would be as loose as the
-    /// room around it where the enclosure's own part is the brightest by far.
+    /// The enclosures' parts (`within` a box), beside the tree: each is evaluated exactly at
+    /// the point, not through the union bounds of the subtrees above a leaf, which are as
+    /// loose as the room around it where the enclosure's light is the brightest by far.
     enclosures: Vec<(PickedLight, LightBounds)>,
     infinite: Vec<Infinite>,
     /// The scene's only emitter, when it has one: picked with probability 1.
@@ -442,7 +448,7 @@ impl LightTree {
                 cos_e,
                 intensity,
                 two_sided: false,
-                inside_only: false,
+                within: None,
             };
             let part = match lamp.kind {
                 LampKind::Point => point(Vec3::Y, -1.0, 0.0),
@@ -518,7 +524,7 @@ impl LightTree {
                 emitters.push(light.light);
             }
             let (enclosures, parts): (Vec<LightBounds>, Vec<LightBounds>) =
-                light.parts.into_iter().partition(|p| p.inside_only);
+                light.parts.into_iter().partition(|p| p.within.is_some());
             tree.enclosures
                 .extend(enclosures.into_iter().map(|p| (light.light, p)));
             let Some(first) = parts.first() else {
@@ -977,7 +983,7 @@ fn polygon_bounds(polygon: &ConvexPolygon, intensity: f32) -> LightBounds {
         cos_e: 0.0,
         intensity,
         two_sided: false,
-        inside_only: false,
+        within: None,
     }
 }
 
@@ -1028,7 +1034,7 @@ mod tests {
                 cos_e: rng.uniform() * 0.9,
                 intensity: 1.0,
                 two_sided: false,
-                inside_only: false,
+                within: None,
             };
             let x = 3.0 * unit(&mut rng);
             let n = unit(&mut rng);
