@@ -518,10 +518,10 @@ impl LightTree {
             ..LightTree::default()
         };
         let mut entries: Vec<(PickedLight, std::ops::Range<usize>, LightBounds)> = Vec::new();
-        let mut emitters: Vec<PickedLight> = Vec::new();
+        let mut with_parts: Vec<PickedLight> = Vec::new();
         for light in lights {
             if !light.parts.is_empty() {
-                emitters.push(light.light);
+                with_parts.push(light.light);
             }
             let (enclosures, parts): (Vec<LightBounds>, Vec<LightBounds>) =
                 light.parts.into_iter().partition(|p| p.within.is_some());
@@ -535,8 +535,8 @@ impl LightTree {
             tree.parts.extend(parts);
             entries.push((light.light, start..tree.parts.len(), union));
         }
-        for light in emitters
-            .split_off(0)
+        let mut emitters: Vec<PickedLight> = Vec::new();
+        for light in with_parts
             .into_iter()
             .chain(tree.infinite.iter().map(Infinite::light))
         {
@@ -645,13 +645,22 @@ impl LightTree {
         } else {
             self.node_importance(0, x, n)
         };
+        let total = tree + self.beside(x, n).map(|(_, w)| w).sum::<f32>();
+        (tree, total)
+    }
+
+    /// The weights beside the tree at `x`: each enclosure's and each emitter's, with its light.
+    #[inline(always)]
+    fn beside(&self, x: Vec3, n: Vec3) -> impl Iterator<Item = (PickedLight, f32)> + '_ {
         let enclosures = self
             .enclosures
             .iter()
-            .map(|(_, b)| b.importance(x, n))
-            .sum::<f32>();
-        let total = tree + enclosures + self.infinite.iter().map(|e| e.importance(n)).sum::<f32>();
-        (tree, total)
+            .map(move |(l, b)| (*l, b.importance(x, n)));
+        enclosures.chain(
+            self.infinite
+                .iter()
+                .map(move |e| (e.light(), e.importance(n))),
+        )
     }
 
     /// The probability of picking `light` beside the tree: through its enclosures and as an
@@ -688,12 +697,7 @@ impl LightTree {
             // Beside the tree: the last with a weight takes what rounding leaves over.
             u -= tree;
             let mut picked = None;
-            let weights = self
-                .enclosures
-                .iter()
-                .map(|(l, b)| (*l, b.importance(x, n)))
-                .chain(self.infinite.iter().map(|e| (e.light(), e.importance(n))));
-            for (light, w) in weights {
+            for (light, w) in self.beside(x, n) {
                 if w > 0.0 {
                     picked = Some(light);
                     if u < w {
@@ -829,12 +833,7 @@ impl LightTree {
                 }
             }
         }
-        let beside = self
-            .enclosures
-            .iter()
-            .map(|(l, b)| (*l, b.importance(x, n)))
-            .chain(self.infinite.iter().map(|e| (e.light(), e.importance(n))));
-        for (light, w) in beside {
+        for (light, w) in self.beside(x, n) {
             let p = w / total;
             match out.iter_mut().find(|(l, _)| *l == light) {
                 Some((_, q)) => *q += p,
