@@ -707,7 +707,7 @@ impl LightTree {
                 u -= w;
             }
             let light = picked?;
-            return Some((light, self.probability(light, x, n)));
+            return Some((light, self.probability_of_weights(light, x, n, tree, total)));
         }
         // Down the tree, each child by its share of the two, `u` stretched back to [0, 1); the
         // product formed as `trail_probability` forms it, so that the two agree exactly.
@@ -763,15 +763,29 @@ impl LightTree {
         if let Some(only) = self.only {
             return if only == light { 1.0 } else { 0.0 };
         }
+        let (tree, total) = self.top_weights(x, n);
+        if total.is_nan() || total <= 0.0 {
+            return 0.0;
+        }
+        self.probability_of_weights(light, x, n, tree, total)
+    }
+
+    /// [`Self::probability`] with `top_weights`'s `(tree, total)` at `x` already known (a pick
+    /// beside the tree has them).
+    #[inline(always)]
+    fn probability_of_weights(
+        &self,
+        light: PickedLight,
+        x: Vec3,
+        n: Vec3,
+        tree: f32,
+        total: f32,
+    ) -> f32 {
         let leaf = match light {
             PickedLight::Area(i) => self.area_leaf.get(i).copied().flatten(),
             PickedLight::Lamp(i) => self.lamp_leaf.get(i).copied().flatten(),
             PickedLight::Environment => self.environment_leaf,
         };
-        let (tree, total) = self.top_weights(x, n);
-        if total.is_nan() || total <= 0.0 {
-            return 0.0;
-        }
         let mut p = 0.0;
         if let Some(leaf) = leaf {
             p += tree / total * self.trail_probability(leaf as usize, x, n);
