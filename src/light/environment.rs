@@ -364,6 +364,15 @@ impl HotSpot {
     }
 }
 
+/// How far a pixel's sides along its rows, arcs of latitude circles, bulge past the great
+/// circles through its corners in a map `width` pixels wide: at most the sagitta `Δφ² / 8` of an
+/// arc `Δφ` wide (`sin θ cos θ · Δφ² / 8` at colatitude `θ`). Distance from a point along a great
+/// circle's arc is greatest at an end, so no point of a pixel lies farther from a point than
+/// its farthest corner plus this.
+fn row_arc_bulge(width: u32) -> f32 {
+    (TAU / width as f32).powi(2) / 8.0
+}
+
 /// How many pixels around its own a direction's filtered value reads: 1 for *Linear* (the
 /// four nearest centres lie within the 3 × 3 block around it), 0 for *Closest*.
 fn reach(interpolation: Interpolation) -> i64 {
@@ -579,8 +588,8 @@ fn hot_spot(image: &EnvImage, interpolation: Interpolation) -> Option<HotSpot> {
             })
             .map(|d| d.dot(centre))
             .fold(1.0f32, f32::min);
-        // A row's height on top: a pixel's sides along its rows bulge past its corners.
-        cos_radius.clamp(-1.0, 1.0).acos() + PI / h as f32
+        // Past the farthest corner: the bulge of a pixel's sides along its rows, and rounding.
+        cos_radius.clamp(-1.0, 1.0).acos() + row_arc_bulge(w) + 1e-6
     };
     let (radius, cap_radius) = (radius_of(&pixels), radius_of(&reached));
     let share = f64::from(power) / total;
@@ -599,6 +608,59 @@ fn hot_spot(image: &EnvImage, interpolation: Interpolation) -> Option<HotSpot> {
 mod tests {
     use super::*;
     use std::sync::Arc;
+
+    /// No point on a pixel's sides lies farther from a direction than its farthest corner plus
+    /// [`row_arc_bulge`] (what the sun's cap adds to its corners); and the bulge is there: some
+    /// point lies farther than the farthest corner alone, so the margin cannot be left out.
+    #[test]
+    fn a_pixel_lies_within_its_corners_and_the_bulge() {
+        let direction = |u: f64, v: f64| {
+            let (sin_theta, cos_theta) = (std::f64::consts::PI * v).sin_cos();
+            let (sin_phi, cos_phi) = (std::f64::consts::TAU * (u - 0.5)).sin_cos();
+            glam::DVec3::new(sin_theta * cos_phi, cos_theta, sin_theta * sin_phi)
+        };
+        let mut rng = crate::sampling::Rng::new(5, 0);
+        let mut bulged = 0;
+        for w in [16u32, 64, 512, 4096] {
+            let h = w / 2;
+            let bulge = f64::from(row_arc_bulge(w));
+            for _ in 0..2000 {
+                let i = (rng.uniform() * w as f32) as u32 % w;
+                let j = (rng.uniform() * h as f32) as u32 % h;
+                let (u0, v0) = (f64::from(i) / f64::from(w), f64::from(j) / f64::from(h));
+                let (du, dv) = (1.0 / f64::from(w), 1.0 / f64::from(h));
+                // A centre up to about a radian from the pixel.
+                let c = (direction(u0 + 0.5 * du, v0 + 0.5 * dv)
+                    + glam::DVec3::new(
+                        f64::from(rng.uniform()) - 0.5,
+                        f64::from(rng.uniform()) - 0.5,
+                        f64::from(rng.uniform()) - 0.5,
+                    ) * 2.0
+                        * f64::from(rng.uniform()).powi(3))
+                .normalize();
+                let angle = |d: glam::DVec3| d.dot(c).clamp(-1.0, 1.0).acos();
+                let corners = [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (1.0, 1.0)]
+                    .map(|(a, b)| angle(direction(u0 + a * du, v0 + b * dv)))
+                    .into_iter()
+                    .fold(0.0, f64::max);
+                let sides = (0..=64).flat_map(|k| {
+                    let t = f64::from(k) / 64.0;
+                    [(t, 0.0), (t, 1.0), (0.0, t), (1.0, t)]
+                });
+                let farthest = sides
+                    .map(|(a, b)| angle(direction(u0 + a * du, v0 + b * dv)))
+                    .fold(0.0, f64::max);
+                assert!(
+                    farthest <= corners + bulge + 1e-12,
+                    "{w} × {h}, pixel ({i}, {j}): {farthest} past {corners} + {bulge}"
+                );
+                if farthest > corners + 1e-12 {
+                    bulged += 1;
+                }
+            }
+        }
+        assert!(bulged > 0, "no pixel side bulged past its corners");
+    }
 
     #[test]
     fn mapping_follows_blender() {
