@@ -588,8 +588,10 @@ fn hot_spot(image: &EnvImage, interpolation: Interpolation) -> Option<HotSpot> {
             })
             .map(|d| d.dot(centre))
             .fold(1.0f32, f32::min);
-        // Past the farthest corner: the bulge of a pixel's sides along its rows, and rounding.
-        cos_radius.clamp(-1.0, 1.0).acos() + row_arc_bulge(w) + 1e-6
+        // Past the farthest corner: the bulge of a pixel's sides along its rows, and 1e-5 rad
+        // for the rounding of these f32 directions (a few 1e-6 rad at a sun's radius; a cap
+        // too small by that would only cost variance, §9.4 of docs/method.md).
+        cos_radius.clamp(-1.0, 1.0).acos() + row_arc_bulge(w) + 1e-5
     };
     let (radius, cap_radius) = (radius_of(&pixels), radius_of(&reached));
     let share = f64::from(power) / total;
