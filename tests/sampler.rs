@@ -56,18 +56,56 @@ fn stratified_1d(values: &[f32]) -> bool {
 /// `n = 2^k` points forming a (0, k, 2)-net: one point in every elementary interval
 /// `2^-a × 2^-b` with `a + b = k`.
 fn net_2d(points: &[Vec2]) -> bool {
+    net(
+        &points
+            .iter()
+            .map(|p| p.to_array().to_vec())
+            .collect::<Vec<_>>(),
+        0,
+    )
+}
+
+/// `n = 2^k` points in `[0, 1)^s` forming a (t, k, s)-net: `2^t` points in every elementary
+/// interval `2^-a_1 × … × 2^-a_s` with `a_1 + … + a_s = k − t` (every one when `k ≤ t`).
+fn net(points: &[Vec<f32>], t: u32) -> bool {
     let n = points.len();
     let k = n.trailing_zeros();
-    (0..=k).all(|a| {
-        let (nx, ny) = (1usize << a, 1usize << (k - a));
-        let mut seen = vec![false; n];
-        points.iter().all(|p| {
-            let i = ((p.x as f64 * nx as f64) as usize).min(nx - 1);
-            let j = ((p.y as f64 * ny as f64) as usize).min(ny - 1);
-            !std::mem::replace(&mut seen[j * nx + i], true)
+    let s = points[0].len();
+    if k <= t {
+        return true;
+    }
+    // Every split of `k − t` digits among the `s` axes.
+    let mut splits = vec![vec![]];
+    for _ in 0..s {
+        splits = splits
+            .into_iter()
+            .flat_map(|split: Vec<u32>| {
+                let used: u32 = split.iter().sum();
+                (0..=(k - t - used)).map(move |a| [split.clone(), vec![a]].concat())
+            })
+            .collect();
+    }
+    splits
+        .into_iter()
+        .filter(|split| split.iter().sum::<u32>() == k - t)
+        .all(|split| {
+            let mut counts = vec![0u32; 1 << (k - t)];
+            for p in points {
+                let cell = split.iter().zip(p).fold(0usize, |cell, (&a, &x)| {
+                    let i = ((x as f64 * (1u64 << a) as f64) as usize).min((1 << a) - 1);
+                    (cell << a) | i
+                });
+                counts[cell] += 1;
+            }
+            counts.iter().all(|&c| c == 1 << t)
         })
-    })
 }
+
+/// The slot of the first vertex's light direction, which shares the camera draw's index
+/// (`sobol::JOINT_DRAW`); the camera takes Sobol' dimensions 2 and 3 of it, a (2, k, 2)-net in
+/// the plane.
+const JOINT_SLOT: usize = 3;
+const CAMERA_SLOT: usize = 0;
 
 fn slot_stratified(draws: &[Draw]) -> bool {
     match draws[0] {
@@ -94,8 +132,9 @@ fn slot_stratified(draws: &[Draw]) -> bool {
 
 /// Every draw of a pixel (camera, light pick, technique pick, light direction, lobe, BSDF
 /// direction, at two vertices) is stratified over the first `2^k` passes for every `k` up to
-/// 10: one value per `1/2^k` interval, and pairs a (0, k, 2)-net. Negative case: independent
-/// numbers are not.
+/// 10: one value per `1/2^k` interval, and pairs a (0, k, 2)-net, but the camera's jitter,
+/// which is a (2, k, 2)-net (with the first vertex's light direction it is one 4D net, the
+/// next test). Negative case: independent numbers are not.
 #[test]
 fn sobol_draws_are_stratified_over_every_power_of_two_prefix() {
     for seed in [0u64, 7, 1 << 40] {
@@ -103,8 +142,12 @@ fn sobol_draws_are_stratified_over_every_power_of_two_prefix() {
             let all = slots(SamplerKind::Sobol, seed, pixel, 1024);
             for k in 0..=10 {
                 for (slot, draws) in all.iter().enumerate() {
+                    let stratified = match slot {
+                        CAMERA_SLOT => net(&points(&draws[..1 << k]), 2),
+                        _ => slot_stratified(&draws[..1 << k]),
+                    };
                     assert!(
-                        slot_stratified(&draws[..1 << k]),
+                        stratified,
                         "seed {seed}, pixel {pixel:?}, slot {slot}: first 2^{k} passes not stratified"
                     );
                 }
@@ -116,6 +159,50 @@ fn sobol_draws_are_stratified_over_every_power_of_two_prefix() {
         independent.iter().all(|draws| !slot_stratified(draws)),
         "independent numbers passed as stratified"
     );
+}
+
+/// A 2D slot's draws as points.
+fn points(draws: &[Draw]) -> Vec<Vec<f32>> {
+    draws
+        .iter()
+        .map(|d| match d {
+            Draw::One(v) => vec![*v, *v],
+            Draw::Two(p) => p.to_array().to_vec(),
+        })
+        .collect()
+}
+
+/// The camera's jitter and the first vertex's light direction together: over the first `2^k`
+/// passes of a pixel, a (3, k, 4)-net (the first four Sobol' dimensions, each scrambled on its
+/// own), so that where the light's visibility changes across a pixel its position and its
+/// light direction are stratified together. Negative case: the camera with the second
+/// vertex's light direction (scrambled as its own dimension) is not a (3, k, 4)-net, though
+/// each of the two is a net on its own.
+#[test]
+fn the_camera_and_the_first_light_direction_form_one_net() {
+    let joined = |all: &[Vec<Draw>], slot: usize, n: usize| -> Vec<Vec<f32>> {
+        points(&all[0][..n])
+            .into_iter()
+            .zip(points(&all[slot][..n]))
+            .map(|(a, b)| [a, b].concat())
+            .collect()
+    };
+    for seed in [0u64, 7] {
+        for pixel in [(0, 0), (5, 9), (300, 200)] {
+            let all = slots(SamplerKind::Sobol, seed, pixel, 256);
+            for k in 0..=8 {
+                assert!(
+                    net(&joined(&all, JOINT_SLOT, 1 << k), 3),
+                    "seed {seed}, pixel {pixel:?}: the first 2^{k} passes are no 4D net"
+                );
+            }
+            // Slot 8: the second vertex's light direction.
+            assert!(
+                !net(&joined(&all, 8, 256), 3),
+                "seed {seed}, pixel {pixel:?}: an independently scrambled draw formed a net"
+            );
+        }
+    }
 }
 
 /// Within one pass, across pixels, each draw is uniform and draws are uncorrelated with each

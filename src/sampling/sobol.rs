@@ -48,6 +48,15 @@
 pub const LOG2_PASSES: u32 = 16;
 pub const PASSES_PER_EPOCH: u32 = 1 << LOG2_PASSES;
 
+/// The draw that shares the first draw's scrambled index: in the integrator's order (camera
+/// jitter; then per vertex light pick, technique pick, light direction) the first vertex's
+/// light direction. It takes Sobol' dimensions 0 and 1 of that index (a (0, 2)-net, as every
+/// other draw) and the camera's jitter takes dimensions 2 and 3 (a (2, 2)-net in the plane),
+/// so that the two form one (3, 4)-net per pixel: where the light's visibility changes across
+/// a pixel (a penumbra), a point's position and its light direction are stratified together,
+/// not each on its own (`docs/method.md` §6.0).
+pub const JOINT_DRAW: usize = 3;
+
 /// Draws whose scramble seeds [`ZSobolPass`] computes once for all pixels: the draws of a path
 /// of five vertices. Later draws hash their seed as they go.
 const TABLED_DIMENSIONS: usize = 32;
@@ -93,6 +102,7 @@ impl ZSobolPass {
             pixel_key: pixel_key(morton),
             dimension: 0,
             drawn: None,
+            camera_rev: 0,
         }
     }
 
@@ -110,19 +120,27 @@ impl ZSobolPass {
             pixel_keys[i] = pixel_key(morton);
         }
         let mut drawn = [[[0.0; 2]; PACKET_DRAWS]; P];
+        let mut camera_rev = [0; P];
         for (d, &h) in self.dimension_seeds[..PACKET_DRAWS].iter().enumerate() {
             // The 64-bit hashes (four lanes to an AVX2 vector) apart from the 32-bit steps
             // (eight lanes), which would otherwise run four lanes at a time with them.
             let (mut index_rev, mut seeds) = ([0; P], [0; P]);
             for i in 0..P {
-                index_rev[i] = nested_scramble_rev_mixed(index_mixed[i], h);
+                index_rev[i] = match d == JOINT_DRAW {
+                    true => camera_rev[i],
+                    false => nested_scramble_rev_mixed(index_mixed[i], h),
+                };
                 seeds[i] = mix_bits(h ^ pixel_keys[i]);
+            }
+            if d == 0 {
+                camera_rev = index_rev;
             }
             // Both coordinates, as `uniform2` takes them; `uniform` takes the first.
             let (mut coordinates, mut scrambles) = ([[0; P]; 2], [[0; P]; 2]);
+            let camera = d == 0;
             for i in 0..P {
-                coordinates[0][i] = sobol0(index_rev[i]);
-                coordinates[1][i] = sobol1(index_rev[i]);
+                coordinates[0][i] = first_coordinate(index_rev[i], camera);
+                coordinates[1][i] = second_coordinate(index_rev[i], camera);
                 scrambles[0][i] = seeds[i] as u32;
                 scrambles[1][i] = (seeds[i] >> 32) as u32;
             }
@@ -142,6 +160,7 @@ impl ZSobolPass {
             pixel_key: pixel_keys[i],
             dimension: 0,
             drawn: Some(drawn[i]),
+            camera_rev: camera_rev[i],
         })
     }
 
@@ -181,6 +200,8 @@ pub struct ZSobol<'a> {
     dimension: usize,
     /// Both coordinates of the first draws, if computed with the packet's other pixels.
     drawn: Option<[[f32; 2]; PACKET_DRAWS]>,
+    /// The first draw's scrambled index, bit-reversed, once drawn: [`JOINT_DRAW`] reads it.
+    camera_rev: u64,
 }
 
 impl ZSobol<'_> {
@@ -196,18 +217,26 @@ impl ZSobol<'_> {
         Some(drawn)
     }
 
-    /// The scrambled index, bit-reversed, and the output scrambles' seeds of the next draw.
+    /// The scrambled index, bit-reversed (for [`JOINT_DRAW`] the first draw's), the output
+    /// scrambles' seeds of the next draw, and whether it is the first (the camera's, which
+    /// takes Sobol' dimensions 2 and 3).
     #[inline(always)]
-    fn next_draw(&mut self) -> (u64, u64) {
-        let h = match self.pass.dimension_seeds.get(self.dimension) {
+    fn next_draw(&mut self) -> (u64, u64, bool) {
+        let d = self.dimension;
+        let h = match self.pass.dimension_seeds.get(d) {
             Some(&h) => h,
-            None => dimension_seed(self.pass.key, self.dimension),
+            None => dimension_seed(self.pass.key, d),
         };
         self.dimension += 1;
-        (
-            nested_scramble_rev_mixed(self.index_mixed, h),
-            mix_bits(h ^ self.pixel_key),
-        )
+        let seeds = mix_bits(h ^ self.pixel_key);
+        if d == JOINT_DRAW {
+            return (self.camera_rev, seeds, false);
+        }
+        let index_rev = nested_scramble_rev_mixed(self.index_mixed, h);
+        if d == 0 {
+            self.camera_rev = index_rev;
+        }
+        (index_rev, seeds, d == 0)
     }
 
     /// Uniform in [0, 1): the first Sobol' dimension (van der Corput) of this draw's index.
@@ -216,8 +245,8 @@ impl ZSobol<'_> {
         if let Some(&[[u, _]]) = self.take_drawn(1) {
             return u;
         }
-        let (index_rev, seeds) = self.next_draw();
-        scrambled_unit(sobol0(index_rev), seeds as u32)
+        let (index_rev, seeds, camera) = self.next_draw();
+        scrambled_unit(first_coordinate(index_rev, camera), seeds as u32)
     }
 
     /// `N ≤ 2` uniform numbers in [0, 1) and then a point on [0, 1)², as `N` calls of
@@ -235,12 +264,12 @@ impl ZSobol<'_> {
         }
         let mut lanes = [(0, 0); 4];
         for lane in &mut lanes[..N] {
-            let (index_rev, seeds) = self.next_draw();
-            *lane = (sobol0(index_rev), seeds as u32);
+            let (index_rev, seeds, camera) = self.next_draw();
+            *lane = (first_coordinate(index_rev, camera), seeds as u32);
         }
-        let (index_rev, seeds) = self.next_draw();
-        lanes[N] = (sobol0(index_rev), seeds as u32);
-        lanes[N + 1] = (sobol1(index_rev), (seeds >> 32) as u32);
+        let (index_rev, seeds, camera) = self.next_draw();
+        lanes[N] = (first_coordinate(index_rev, camera), seeds as u32);
+        lanes[N + 1] = (second_coordinate(index_rev, camera), (seeds >> 32) as u32);
         let u = lanes.map(|(coordinate, seed)| scrambled_unit(coordinate, seed));
         (
             std::array::from_fn(|i| u[i]),
@@ -255,12 +284,12 @@ impl ZSobol<'_> {
         if let Some(&[u]) = self.take_drawn(1) {
             return glam::Vec2::from(u);
         }
-        let (index_rev, seeds) = self.next_draw();
+        let (index_rev, seeds, camera) = self.next_draw();
         // The two lanes run the same steps: compiled for AVX2, the reversals and scrambles of
         // both are vector instructions.
         glam::Vec2::new(
-            scrambled_unit(sobol0(index_rev), seeds as u32),
-            scrambled_unit(sobol1(index_rev), (seeds >> 32) as u32),
+            scrambled_unit(first_coordinate(index_rev, camera), seeds as u32),
+            scrambled_unit(second_coordinate(index_rev, camera), (seeds >> 32) as u32),
         )
     }
 }
@@ -317,6 +346,100 @@ pub fn sobol1(index_rev: u64) -> u32 {
         v ^= (v << (1 << b)) & mask;
     }
     v
+}
+
+/// A draw's first coordinate: Sobol' dimension 0 of its index, or 2 for the camera's draw.
+#[inline(always)]
+fn first_coordinate(index_rev: u64, camera: bool) -> u32 {
+    match camera {
+        true => sobol2(index_rev),
+        false => sobol0(index_rev),
+    }
+}
+
+/// A draw's second coordinate: Sobol' dimension 1 of its index, or 3 for the camera's draw.
+#[inline(always)]
+fn second_coordinate(index_rev: u64, camera: bool) -> u32 {
+    match camera {
+        true => sobol3(index_rev),
+        false => sobol1(index_rev),
+    }
+}
+
+/// The third Sobol' dimension (primitive polynomial x² + x + 1, Joe and Kuo's initial numbers
+/// 1, 3) of an index given bit-reversed, as [`sobol0`]: index bits 0–31 (as `sobol0`, which
+/// sees those alone), by a table per byte of the reversed index's high half.
+#[inline]
+pub fn sobol2(index_rev: u64) -> u32 {
+    by_bytes(&SOBOL2, index_rev)
+}
+
+/// The fourth Sobol' dimension (x³ + x + 1, initial numbers 1, 3, 1), as [`sobol2`].
+#[inline]
+pub fn sobol3(index_rev: u64) -> u32 {
+    by_bytes(&SOBOL3, index_rev)
+}
+
+/// A dimension's columns XORed over the index bits set, four table lookups.
+#[inline(always)]
+fn by_bytes(tables: &[[u32; 256]; 4], index_rev: u64) -> u32 {
+    let high = (index_rev >> 32) as u32;
+    tables[0][(high & 0xff) as usize]
+        ^ tables[1][((high >> 8) & 0xff) as usize]
+        ^ tables[2][((high >> 16) & 0xff) as usize]
+        ^ tables[3][(high >> 24) as usize]
+}
+
+static SOBOL2: [[u32; 256]; 4] = byte_tables(&directions(2, 1, [1, 3, 0]));
+static SOBOL3: [[u32; 256]; 4] = byte_tables(&directions(3, 1, [1, 3, 1]));
+
+/// The generator matrix's columns `v_k` (output digit 0 in the top bit) of the dimension with
+/// a primitive polynomial of degree `s` and inner coefficients `a`, from its initial numbers
+/// `m` (Bratley and Fox's recurrence, as Joe and Kuo tabulate them).
+const fn directions(s: usize, a: u32, m: [u32; 3]) -> [u32; 32] {
+    let mut v = [0u32; 32];
+    let mut k = 0;
+    while k < 32 {
+        if k < s {
+            v[k] = m[k] << (31 - k);
+        } else {
+            let mut x = v[k - s] ^ (v[k - s] >> s);
+            let mut j = 1;
+            while j < s {
+                if (a >> (s - 1 - j)) & 1 == 1 {
+                    x ^= v[k - j];
+                }
+                j += 1;
+            }
+            v[k] = x;
+        }
+        k += 1;
+    }
+    v
+}
+
+/// For each byte `b` of the reversed index's high half (index bit `k` at bit `31 − k`) and
+/// each value of it, the XOR of the columns of the index bits it holds.
+const fn byte_tables(v: &[u32; 32]) -> [[u32; 256]; 4] {
+    let mut t = [[0u32; 256]; 4];
+    let mut b = 0;
+    while b < 4 {
+        let mut value = 0;
+        while value < 256 {
+            let mut x = 0;
+            let mut bit = 0;
+            while bit < 8 {
+                if (value >> bit) & 1 == 1 {
+                    x ^= v[31 - (8 * b + bit)];
+                }
+                bit += 1;
+            }
+            t[b][value] = x;
+            value += 1;
+        }
+        b += 1;
+    }
+    t
 }
 
 /// Owen scrambling of a digit-reversed value (Burley 2020, after Laine and Karras 2011): every
@@ -402,6 +525,47 @@ mod tests {
         assert_eq!(point(0b101), point(0b100) ^ point(0b001));
     }
 
+    /// The third and fourth dimensions' generator matrix columns (the point of index `2^j`),
+    /// as SciPy's unscrambled `qmc.Sobol(d=4)` gives them (the same sets of points over the
+    /// first 64 indices): index bits 0–7 and 31; and linear over GF(2).
+    #[test]
+    fn third_and_fourth_dimensions_match_joe_and_kuo() {
+        let columns: [(u32, u32, u32); 9] = [
+            (0, 0x8000_0000, 0x8000_0000),
+            (1, 0xc000_0000, 0xc000_0000),
+            (2, 0x6000_0000, 0x2000_0000),
+            (3, 0x9000_0000, 0x5000_0000),
+            (4, 0xe800_0000, 0xf800_0000),
+            (5, 0x5c00_0000, 0x7400_0000),
+            (6, 0x8e00_0000, 0xa200_0000),
+            (7, 0xc500_0000, 0x9300_0000),
+            (31, 0xc500_5555, 0x5005_0093),
+        ];
+        for (j, two, three) in columns {
+            let index_rev = (1u64 << j).reverse_bits();
+            assert_eq!(sobol2(index_rev), two, "dimension 2, column {j}");
+            assert_eq!(sobol3(index_rev), three, "dimension 3, column {j}");
+        }
+        let point = |index: u64| (sobol2(index.reverse_bits()), sobol3(index.reverse_bits()));
+        let (a, b, c) = (point(0b1101), point(0b1000), point(0b0101));
+        assert_eq!(a, (b.0 ^ c.0, b.1 ^ c.1));
+        // The table-driven dimensions against the recurrence bit by bit, on many indices.
+        let mut v = 0x0123_4567_89ab_cdef_u64;
+        for _ in 0..10_000 {
+            assert_eq!(
+                sobol2(v.reverse_bits()),
+                reference::sobol_rev(v, 2).reverse_bits()
+            );
+            assert_eq!(
+                sobol3(v.reverse_bits()),
+                reference::sobol_rev(v, 3).reverse_bits()
+            );
+            v = v
+                .wrapping_mul(0x5851_F42D_4C95_7F2D)
+                .wrapping_add(0x1405_7B7E_F767_814F);
+        }
+    }
+
     #[test]
     fn nested_scramble_keeps_aligned_blocks() {
         for seed in [1u64, 0xdead_beef, u64::MAX] {
@@ -432,6 +596,8 @@ mod tests {
             key: u64,
             pixel_key: u64,
             dimension: u64,
+            /// The first draw's scrambled index, which draw 3 reads.
+            camera: u64,
         }
 
         impl ZSobol {
@@ -443,28 +609,74 @@ mod tests {
                     key: mix_bits(seed ^ mix_bits(epoch.wrapping_add(0x5851_F42D_4C95_7F2D))),
                     pixel_key: mix_bits(morton2(x, y) ^ 0xD1B5_4A32_D192_ED03),
                     dimension: 0,
+                    camera: 0,
                 }
             }
 
-            fn next_draw(&mut self) -> (u64, u64) {
+            /// The draw's index (for draw 3 the first draw's), its seeds, and whether it is
+            /// the first draw, which takes Sobol' dimensions 2 and 3.
+            fn next_draw(&mut self) -> (u64, u64, bool) {
                 let h = mix_bits(self.key ^ self.dimension.wrapping_mul(0x9E37_79B9_7F4A_7C15));
+                let d = self.dimension;
                 self.dimension += 1;
                 let index = nested_scramble_rev(self.index_rev, h).reverse_bits();
-                (index, mix_bits(h ^ self.pixel_key))
+                if d == 0 {
+                    self.camera = index;
+                }
+                match d == 3 {
+                    true => (self.camera, mix_bits(h ^ self.pixel_key), false),
+                    false => (index, mix_bits(h ^ self.pixel_key), d == 0),
+                }
             }
 
             pub fn uniform(&mut self) -> f32 {
-                let (index, seeds) = self.next_draw();
-                unit(owen_scramble_rev(index as u32, seeds as u32))
+                let (index, seeds, camera) = self.next_draw();
+                let first = match camera {
+                    true => sobol_rev(index, 2),
+                    false => index as u32,
+                };
+                unit(owen_scramble_rev(first, seeds as u32))
             }
 
             pub fn uniform2(&mut self) -> glam::Vec2 {
-                let (index, seeds) = self.next_draw();
+                let (index, seeds, camera) = self.next_draw();
+                let (first, second) = match camera {
+                    true => (sobol_rev(index, 2), sobol_rev(index, 3)),
+                    false => (index as u32, sobol1_rev(index)),
+                };
                 glam::Vec2::new(
-                    unit(owen_scramble_rev(index as u32, seeds as u32)),
-                    unit(owen_scramble_rev(sobol1_rev(index), (seeds >> 32) as u32)),
+                    unit(owen_scramble_rev(first, seeds as u32)),
+                    unit(owen_scramble_rev(second, (seeds >> 32) as u32)),
                 )
             }
+        }
+
+        /// Sobol' dimension 2 or 3 of `index`'s low 32 bits, digit-reversed, from the
+        /// direction numbers' recurrence bit by bit.
+        pub fn sobol_rev(index: u64, dimension: usize) -> u32 {
+            let (s, a, m): (usize, u32, &[u32]) = match dimension {
+                2 => (2, 1, &[1, 3]),
+                _ => (3, 1, &[1, 3, 1]),
+            };
+            let mut v = Vec::with_capacity(32);
+            for k in 0..32 {
+                let column = if k < s {
+                    m[k] << (31 - k)
+                } else {
+                    let mut x = v[k - s] ^ (v[k - s] >> s);
+                    for j in 1..s {
+                        if (a >> (s - 1 - j)) & 1 == 1 {
+                            x ^= v[k - j];
+                        }
+                    }
+                    x
+                };
+                v.push(column);
+            }
+            let point = (0..32)
+                .filter(|k| (index >> k) & 1 == 1)
+                .fold(0u32, |x, k| x ^ v[k]);
+            point.reverse_bits()
         }
 
         fn unit(v_rev: u32) -> f32 {
