@@ -10,7 +10,10 @@
 //! block of `2^k` indices onto an aligned block, the first `2^k` passes of a pixel are, in
 //! every 1D draw, one point in each `1/2^k` interval, and in every 2D draw a (0, k, 2)-net: any
 //! prefix of passes is well distributed, and the image depends only on the seed, the pixel and
-//! the pass, never on how threads split the work.
+//! the pass, never on how threads split the work. One pair of draws is not padded: the first
+//! vertex's light direction ([`JOINT_DRAW`]) shares the camera draw's scrambled index, and the
+//! camera takes Sobol' dimensions 2 and 3 of it (a (2, k, 2)-net), so that the camera's jitter
+//! and the light direction form one (3, k, 4)-net.
 //!
 //! pbrt fixes the sample count in advance and places it in the low bits so that neighbouring
 //! pixels' samples also tile one larger net (blue-noise error) at exactly that count. A
@@ -102,7 +105,6 @@ impl ZSobolPass {
             pixel_key: pixel_key(morton),
             dimension: 0,
             drawn: None,
-            camera_rev: 0,
         }
     }
 
@@ -160,7 +162,6 @@ impl ZSobolPass {
             pixel_key: pixel_keys[i],
             dimension: 0,
             drawn: Some(drawn[i]),
-            camera_rev: camera_rev[i],
         })
     }
 
@@ -200,8 +201,6 @@ pub struct ZSobol<'a> {
     dimension: usize,
     /// Both coordinates of the first draws, if computed with the packet's other pixels.
     drawn: Option<[[f32; 2]; PACKET_DRAWS]>,
-    /// The first draw's scrambled index, bit-reversed, once drawn: [`JOINT_DRAW`] reads it.
-    camera_rev: u64,
 }
 
 impl ZSobol<'_> {
@@ -228,18 +227,21 @@ impl ZSobol<'_> {
             None => dimension_seed(self.pass.key, d),
         };
         self.dimension += 1;
-        let seeds = mix_bits(h ^ self.pixel_key);
-        if d == JOINT_DRAW {
-            return (self.camera_rev, seeds, false);
-        }
-        let index_rev = nested_scramble_rev_mixed(self.index_mixed, h);
-        if d == 0 {
-            self.camera_rev = index_rev;
-        }
-        (index_rev, seeds, d == 0)
+        // The joint draw scrambles the index as the camera's draw does, whether or not that
+        // one was drawn.
+        let index_key = match d == JOINT_DRAW {
+            true => self.pass.dimension_seeds[0],
+            false => h,
+        };
+        (
+            nested_scramble_rev_mixed(self.index_mixed, index_key),
+            mix_bits(h ^ self.pixel_key),
+            d == 0,
+        )
     }
 
-    /// Uniform in [0, 1): the first Sobol' dimension (van der Corput) of this draw's index.
+    /// Uniform in [0, 1): the first Sobol' dimension (van der Corput) of this draw's index
+    /// (dimension 2 for the camera's draw; [`JOINT_DRAW`]'s index is the camera's).
     #[inline(always)]
     pub fn uniform(&mut self) -> f32 {
         if let Some(&[[u, _]]) = self.take_drawn(1) {
@@ -278,7 +280,8 @@ impl ZSobol<'_> {
     }
 
     /// Uniform on [0, 1)²: the first two Sobol' dimensions of this draw's index, which form a
-    /// (0, 2)-sequence, each Owen-scrambled with its own seed.
+    /// (0, 2)-sequence, each Owen-scrambled with its own seed (dimensions 2 and 3 for the
+    /// camera's draw; [`JOINT_DRAW`]'s index is the camera's).
     #[inline(always)]
     pub fn uniform2(&mut self) -> glam::Vec2 {
         if let Some(&[u]) = self.take_drawn(1) {
