@@ -53,18 +53,6 @@ fn stratified_1d(values: &[f32]) -> bool {
     true
 }
 
-/// `n = 2^k` points forming a (0, k, 2)-net: one point in every elementary interval
-/// `2^-a × 2^-b` with `a + b = k`.
-fn net_2d(points: &[Vec2]) -> bool {
-    net(
-        &points
-            .iter()
-            .map(|p| p.to_array().to_vec())
-            .collect::<Vec<_>>(),
-        0,
-    )
-}
-
 /// `n = 2^k` points in `[0, 1)^s` forming a (t, k, s)-net: `2^t` points in every elementary
 /// interval `2^-a_1 × … × 2^-a_s` with `a_1 + … + a_s = k − t` (every one when `k ≤ t`).
 fn net(points: &[Vec<f32>], t: u32) -> bool {
@@ -107,26 +95,11 @@ fn net(points: &[Vec<f32>], t: u32) -> bool {
 const JOINT_SLOT: usize = 3;
 const CAMERA_SLOT: usize = 0;
 
+/// A 1D slot's values one per interval, a 2D slot's points a (0, k, 2)-net.
 fn slot_stratified(draws: &[Draw]) -> bool {
     match draws[0] {
-        Draw::One(_) => stratified_1d(
-            &draws
-                .iter()
-                .map(|d| match d {
-                    Draw::One(v) => *v,
-                    Draw::Two(p) => p.x,
-                })
-                .collect::<Vec<_>>(),
-        ),
-        Draw::Two(_) => net_2d(
-            &draws
-                .iter()
-                .map(|d| match d {
-                    Draw::One(v) => Vec2::splat(*v),
-                    Draw::Two(p) => *p,
-                })
-                .collect::<Vec<_>>(),
-        ),
+        Draw::One(_) => stratified_1d(&points(draws).iter().map(|p| p[0]).collect::<Vec<_>>()),
+        Draw::Two(_) => net(&points(draws), 0),
     }
 }
 

@@ -565,8 +565,7 @@ impl LightTree {
     }
 
     /// Appends the subtree over `order`'s entries, split where [`saoh_split`] finds it cheapest
-    /// (at the median of their centres along the widest axis where it finds no split), and
-    /// returns its root's index.
+    /// (in halves by index where their centres coincide), and returns its root's index.
     fn build(
         &mut self,
         entries: &[(PickedLight, std::ops::Range<usize>, LightBounds)],
@@ -594,20 +593,9 @@ impl LightTree {
         }
         let mid = match saoh_split(entries, order, &bounds) {
             Some(mid) => mid,
+            // Every centre the same: halves by index.
             None => {
-                let (lo, hi) =
-                    order
-                        .iter()
-                        .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), &i| {
-                            let c = entries[i].2.centroid();
-                            (lo.min(c), hi.max(c))
-                        });
-                let axis = (hi - lo).max_position();
-                order.sort_by(|&a, &b| {
-                    entries[a].2.centroid()[axis]
-                        .total_cmp(&entries[b].2.centroid()[axis])
-                        .then(a.cmp(&b))
-                });
+                order.sort_unstable();
                 order.len() / 2
             }
         };
@@ -874,7 +862,8 @@ const SAOH_BUCKETS: usize = 12;
 /// each axis, the split that minimises each side's intensity × the solid angle its cones can
 /// light (`M_Ω`) × its box's surface area, stretched by how thin `bounds` is along the axis.
 /// Sorts `order` so that the first `k` entries form one side and returns `k`; `None` where no
-/// axis separates the centres.
+/// axis separates the centres (along one that does, the extreme centres fall in the first and
+/// last buckets, so some split has entries on both sides).
 fn saoh_split(
     entries: &[(PickedLight, std::ops::Range<usize>, LightBounds)],
     order: &mut [usize],
