@@ -39,6 +39,7 @@ pub struct SurfaceTextures {
     emissive: Option<Texture>,
     specular: Option<Texture>,
     specular_color: Option<Texture>,
+    transmission: Option<Texture>,
 }
 
 impl SurfaceTextures {
@@ -77,6 +78,7 @@ impl SurfaceTextures {
             emissive: resolve(t.emissive.as_ref(), "emissiveTexture")?,
             specular: resolve(t.specular.as_ref(), "specularTexture")?,
             specular_color: resolve(t.specular_color.as_ref(), "specularColorTexture")?,
+            transmission: resolve(t.transmission.as_ref(), "transmissionTexture")?,
         }))
     }
 
@@ -151,6 +153,9 @@ impl SurfaceTextures {
         }
         if let Some(t) = &self.specular_color {
             p.specular_color *= t.sample(uvs, Encoding::Srgb).truncate();
+        }
+        if let Some(t) = &self.transmission {
+            p.transmission *= t.sample(uvs, Encoding::Linear).x;
         }
         p.emission *= self.emission_scale(uvs);
         Material::at_incidence(&p, cos_o)

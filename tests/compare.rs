@@ -345,6 +345,52 @@ fn compare_renders_two_light_selections_side_by_side() {
     let _ = std::fs::remove_dir_all(&root);
 }
 
+/// `--glass-shadows pass,stop` renders every strategy both ways against one reference, each in
+/// its own folder, and prints the efficiency of stopping over passing. Negative case: both
+/// lists with two entries is an error that names them.
+#[test]
+fn compare_renders_glass_passing_and_stopping_side_by_side() {
+    let _serial = serial();
+    let root = temp_dir("glass");
+    let (out, cache) = (root.join("out"), root.join("cache"));
+    run_compare(
+        &out,
+        &cache,
+        &[
+            ("--scene", "panes"),
+            ("--strategies", "antishadow"),
+            ("--glass-shadows", "pass,stop"),
+            ("--seconds", "0.1"),
+        ],
+    );
+    for glass in ["glass-pass", "glass-stop"] {
+        let (_, rows) = read_csv(&out.join(glass).join("convergence.csv"));
+        assert!(!rows.is_empty(), "{glass}");
+        assert!(
+            rows.iter().all(|r| r[1] == "antishadow"),
+            "{glass}: {rows:?}"
+        );
+    }
+    let cli = Cli::try_parse_from([
+        "portalview",
+        "compare",
+        "--scene",
+        "panes",
+        "--seconds",
+        "0.1",
+        "--light-selection",
+        "power,tree",
+        "--glass-shadows",
+        "pass,stop",
+        "--out",
+        &out.display().to_string(),
+    ])
+    .unwrap();
+    let err = run(cli.command.unwrap()).unwrap_err();
+    assert!(err.to_string().contains("--glass-shadows"), "{err}");
+    let _ = std::fs::remove_dir_all(&root);
+}
+
 /// This checks the scheduling, not the strategies' speed: whatever each pass costs, every
 /// strategy's accumulated pass time must end within one pass of the others'.
 #[test]

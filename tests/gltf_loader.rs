@@ -160,6 +160,7 @@ fn assert_scenes_close(a: &SceneDesc, b: &SceneDesc) {
         assert_eq!(m.specular_factor, n.specular_factor, "{}", m.name);
         assert_eq!(m.specular_color, n.specular_color, "{}", m.name);
         assert_eq!(m.ior, n.ior, "{}", m.name);
+        assert_eq!(m.transmission, n.transmission, "{}", m.name);
         assert_eq!(m.double_sided, n.double_sided, "{}", m.name);
     }
     assert_eq!(a.meshes.len(), b.meshes.len());
@@ -1438,6 +1439,34 @@ fn broken_files_give_errors_naming_the_file_and_field() {
             &["material 0 \"Paint\"", "KHR_materials_ior.ior", "0.5"],
         ),
         (
+            "transmission_above_one.gltf",
+            edited(|d| {
+                with_material(
+                    d,
+                    json!({"KHR_materials_transmission": {"transmissionFactor": 1.5}}),
+                )
+            }),
+            &[
+                "material 0 \"Paint\"",
+                "KHR_materials_transmission.transmissionFactor",
+                "1.5",
+            ],
+        ),
+        (
+            "negative_thickness.gltf",
+            edited(|d| {
+                with_material(
+                    d,
+                    json!({"KHR_materials_volume": {"thicknessFactor": -1.0}}),
+                )
+            }),
+            &[
+                "material 0 \"Paint\"",
+                "KHR_materials_volume.thicknessFactor",
+                "negative",
+            ],
+        ),
+        (
             "ior_not_a_number.gltf",
             edited(|d| with_material(d, json!({"KHR_materials_ior": {"ior": "NaN"}}))),
             &[
@@ -1627,13 +1656,63 @@ fn specular_and_ior_extensions_are_read() {
     let _ = fs::remove_dir_all(&dir);
 }
 
+/// Glass as Blender 3.4 writes a Principled BSDF of Transmission 1 (`KHR_materials_transmission`
+/// with its factor, the IOR only where it is not 1.5, no volume): thin-walled transmission,
+/// read without a warning; its texture is read from R. A volume with a thickness, and
+/// transmission with roughness, are rendered as thin and smooth: each says so, naming the file
+/// and the material.
+#[test]
+fn transmission_is_read_and_what_is_not_rendered_warns() {
+    let dir = temp_dir("transmission");
+    let mut doc = triangle_doc(&dir, "glass", &TRIANGLE, &[0, 1, 2]);
+    doc["extensionsUsed"] = json!([
+        "KHR_materials_transmission",
+        "KHR_materials_ior",
+        "KHR_materials_volume"
+    ]);
+    doc["materials"] = json!([
+        {"name": "Pane", "pbrMetallicRoughness": {"roughnessFactor": 0.0},
+         "extensions": {"KHR_materials_transmission": {"transmissionFactor": 1.0}}},
+        {"name": "Thick", "pbrMetallicRoughness": {"roughnessFactor": 0.0},
+         "extensions": {"KHR_materials_transmission": {"transmissionFactor": 0.9},
+                        "KHR_materials_ior": {"ior": 1.33},
+                        "KHR_materials_volume": {"thicknessFactor": 0.02}}},
+        {"name": "Frosted", "pbrMetallicRoughness": {"roughnessFactor": 0.4},
+         "extensions": {"KHR_materials_transmission": {"transmissionFactor": 1.0},
+                        "KHR_materials_volume": {"thicknessFactor": 0.0}}}
+    ]);
+    doc["meshes"][0]["primitives"][0]["material"] = json!(0);
+    let path = dir.join("glass.gltf");
+    write_json(&path, &doc);
+    let scene = load_gltf(&path).unwrap();
+    let [pane, thick, frosted] = &scene.materials[..] else {
+        panic!("three materials");
+    };
+    assert_eq!((pane.transmission, pane.ior), (1.0, 1.5));
+    assert_eq!((thick.transmission, thick.ior), (0.9, 1.33));
+    assert_eq!(frosted.transmission, 1.0);
+    let warnings = &scene.warnings;
+    assert_eq!(warnings.len(), 2, "{warnings:?}");
+    assert!(
+        warnings[0].contains("glass.gltf")
+            && warnings[0].contains("\"Thick\"")
+            && warnings[0].contains("thicknessFactor"),
+        "{warnings:?}"
+    );
+    assert!(
+        warnings[1].contains("\"Frosted\"") && warnings[1].contains("roughness 0.4"),
+        "{warnings:?}"
+    );
+    let _ = fs::remove_dir_all(&dir);
+}
+
 /// The specular layer's textures are read; an extension the file uses but that is not read
 /// is a warning naming the file and the extension.
 #[test]
 fn specular_textures_are_read_and_unread_extensions_warn() {
     let dir = temp_dir("specular-texture");
     let mut doc = triangle_doc(&dir, "textured", &TRIANGLE, &[0, 1, 2]);
-    doc["extensionsUsed"] = json!(["KHR_materials_specular", "KHR_materials_transmission"]);
+    doc["extensionsUsed"] = json!(["KHR_materials_specular", "KHR_materials_clearcoat"]);
     fs::write(dir.join("spec.png"), png(1, 1, &[[255, 128, 0, 64]])).unwrap();
     doc["images"] = json!([{"uri": "spec.png"}]);
     doc["textures"] = json!([{"source": 0}]);
@@ -1672,7 +1751,7 @@ fn specular_textures_are_read_and_unread_extensions_warn() {
     assert_eq!(m.textures.specular.map(|t| t.image), Some(0));
     assert_eq!(warnings.len(), 1, "{warnings:?}");
     assert!(
-        warnings[0].contains("textured.gltf") && warnings[0].contains("KHR_materials_transmission"),
+        warnings[0].contains("textured.gltf") && warnings[0].contains("KHR_materials_clearcoat"),
         "{warnings:?}"
     );
     // At a point: specularFactor × A (64/255), specularColor × sRGB-decoded RGB.
@@ -1712,6 +1791,7 @@ fn specular_and_ior_round_trip() {
     desc.materials[0].ior = 1.45;
     desc.materials[1].specular_factor = 0.25;
     desc.materials[1].specular_color = Vec3::new(1.5, 0.1, 0.0);
+    desc.materials[1].transmission = 0.75;
     export_glb(&desc, &path).unwrap();
     assert_scenes_close(&load_gltf(&path).unwrap(), &desc);
     let used = |path: &Path| -> Vec<String> {
@@ -1721,6 +1801,7 @@ fn specular_and_ior_round_trip() {
     let extensions = used(&path);
     assert!(extensions.iter().any(|e| e == "KHR_materials_specular"));
     assert!(extensions.iter().any(|e| e == "KHR_materials_ior"));
+    assert!(extensions.iter().any(|e| e == "KHR_materials_transmission"));
     export_glb(&plain, &path).unwrap();
     assert_scenes_close(&load_gltf(&path).unwrap(), &plain);
     let extensions = used(&path);

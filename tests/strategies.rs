@@ -134,9 +134,10 @@ impl Case {
 /// bulb whose solid is the bounding prism, a tube hulled exactly).
 fn scenes() -> Vec<(String, Scene)> {
     // The rooms lit by the sky through window portals come last (they have no area-light
-    // portals, so no test points of their own), then the living room: `cases()` seeds its search
-    // for test points by a scene's place in this list, and the others keep theirs.
-    let last = ["window", "windows2", "livingroom"];
+    // portals, so no test points of their own), then the living room, then the rooms with glass
+    // (no area-light portals either): `cases()` seeds its search for test points by a scene's
+    // place in this list, and the others keep theirs.
+    let last = ["window", "windows2", "livingroom", "panes", "pendant"];
     let mut scenes: Vec<(String, Scene)> = builtin::NAMES
         .iter()
         .filter(|name| !last.contains(name))

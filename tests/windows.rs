@@ -487,6 +487,7 @@ fn render_image_with(
             sampler: portalview::sampling::SamplerKind::Independent,
             mixture,
             selection: Default::default(),
+            glass: Default::default(),
         },
     );
     let (film, stats) = render(&integrator, 48, 36, spp);

@@ -101,13 +101,14 @@ def cycles_window_portal(x0, x1, z0, z1, y, name=None):
     return light
 
 
-def export_gltf(path, tangents=False):
-    """The scene as glTF (.gltf + .bin + textures) with Blender's exporter: custom properties
-    as extras, lights, cameras, Y up, modifiers applied, TANGENT if `tangents`."""
+def export_gltf(path, tangents=False, glb=False):
+    """The scene as glTF (.gltf + .bin + textures, or one .glb if `glb`) with Blender's
+    exporter: custom properties as extras, lights, cameras, Y up, modifiers applied, TANGENT if
+    `tangents`."""
     os.makedirs(os.path.dirname(path), exist_ok=True)
     bpy.ops.export_scene.gltf(
         filepath=path,
-        export_format="GLTF_SEPARATE",
+        export_format="GLB" if glb else "GLTF_SEPARATE",
         export_extras=True,
         export_lights=True,
         export_cameras=True,
@@ -142,14 +143,16 @@ def principled_to_diffuse():
 # --- rendering and reading images -------------------------------------------------------------
 
 
-def render_cycles(path, spp, seed, threads=None, depth=1, limit=(), transparent=False):
+def render_cycles(path, spp, seed, threads=None, depth=1, limit=(), transparent=False,
+                  overrides=None):
     """A Cycles render on the CPU to a 32-bit RGBA OpenEXR: spp samples, no adaptive sampling,
     denoising or clamping, box filter of width 1, the Standard view transform.
 
     threads: a fixed thread count (None: Blender's, e.g. from -t). depth: portalview's
     --max-depth (path vertices after the camera; 1 = direct light only): max_bounces = depth - 1,
     and the same limit on each kind of bounce in `limit` ("diffuse", "glossy", "transmission").
-    transparent: transparent film (alpha 0 where camera rays leave the scene)."""
+    transparent: transparent film (alpha 0 where camera rays leave the scene). overrides: other
+    scene.cycles settings ({name: value}, e.g. bounce limits or caustics), set last."""
     s = bpy.context.scene
     s.render.engine = "CYCLES"
     s.cycles.device = "CPU"
@@ -170,6 +173,8 @@ def render_cycles(path, spp, seed, threads=None, depth=1, limit=(), transparent=
     s.cycles.filter_width = 1.0
     s.cycles.seed = seed
     s.render.film_transparent = transparent
+    for name, value in (overrides or {}).items():
+        setattr(s.cycles, name, value)
     s.view_settings.view_transform = "Standard"
     s.render.image_settings.file_format = "OPEN_EXR"
     s.render.image_settings.color_mode = "RGBA"  # Blender's default
@@ -210,6 +215,16 @@ def alpha_mask(path, force=False, only=None, **settings):
     return load_exr(path, alpha=True)[..., 3]
 
 
+def gltf_json(path):
+    """The JSON of a .gltf, or of a .glb's first (JSON) chunk, as a dict."""
+    with open(path, "rb") as f:
+        data = f.read()
+    if data[:4] != b"glTF":
+        return json.loads(data)
+    length = int.from_bytes(data[12:16], "little")
+    return json.loads(data[20 : 20 + length])
+
+
 def load_exr(path, alpha=False):
     """An OpenEXR as float64 (h, w, 3), or (h, w, 4) with alpha, top row first."""
     img = bpy.data.images.load(path)
@@ -224,23 +239,27 @@ def luminance(rgb):
     return rgb @ np.array([0.2126, 0.7152, 0.0722])
 
 
-def run_portalview(exe, gltf, path, a, seed=1, depth=1, extra=(), show=None):
+def run_portalview(exe, gltf, path, a, seed=1, depth=1, extra=(), show=None, seconds=None,
+                   info=None):
     """`exe render` of gltf to the OpenEXR `path` (its folder made if need be) at a.width x
-    a.height, a.pv_spp samples per pixel, --max-depth depth, RAYON_NUM_THREADS = a.pv_threads,
-    then `extra` arguments. Prints the time (naming the output `show`, by default path) and
-    returns the image's luminance, or None (with portalview's stderr printed) if it failed."""
+    a.height, a.pv_spp samples per pixel (or `seconds` of passes, --seconds), --max-depth depth,
+    RAYON_NUM_THREADS = a.pv_threads, then `extra` arguments. Prints the time (naming the output
+    `show`, by default path) and returns the image's luminance, or None (with portalview's stderr
+    printed) if it failed. info (a dict): gets "wall" (seconds) and "stdout"."""
     os.makedirs(os.path.dirname(path), exist_ok=True)
     env = dict(os.environ, RAYON_NUM_THREADS=str(a.pv_threads))
+    budget = ["--spp", str(a.pv_spp)] if seconds is None else ["--seconds", f"{seconds:.6g}"]
     cmd = [
         exe, "render", "--scene", gltf, "--width", str(a.width), "--height", str(a.height),
-        "--spp", str(a.pv_spp), "--seed", str(seed), "--max-depth", str(depth), "--out", path,
-        *extra,
+        *budget, "--seed", str(seed), "--max-depth", str(depth), "--out", path, *extra,
     ]
     t0 = time.time()
     r = subprocess.run(cmd, env=env, capture_output=True, text=True)
     if r.returncode != 0:
         print(f"portalview failed on {gltf}:\n{r.stderr.strip()}")
         return None
+    if info is not None:
+        info.update(wall=time.time() - t0, stdout=r.stdout)
     print(f"  portalview {path if show is None else show}: {time.time() - t0:.0f} s")
     return luminance(load_exr(path))
 

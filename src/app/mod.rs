@@ -31,7 +31,7 @@ use crate::asset::desc::PortalDesc;
 use crate::asset::environment::{EnvironmentDesc, EnvironmentOverrides};
 use crate::camera::Camera;
 use crate::light::{Mixture, Selection, Strategy};
-use crate::render::integrator::RenderSettings;
+use crate::render::integrator::{GlassShadows, RenderSettings};
 use crate::render::worker::{Frame, RenderHandle, RenderRequest};
 use crate::sampling::SamplerKind;
 use crate::scene::Scene;
@@ -236,6 +236,7 @@ impl PortalViewApp {
         settings.sampler = options.sampler.unwrap_or(settings.sampler);
         settings.mixture = options.mixture.unwrap_or(settings.mixture);
         settings.selection = options.selection.unwrap_or(settings.selection);
+        settings.glass = options.glass.unwrap_or(settings.glass);
         settings.show_volumes |= options.volumes;
         let repaint = ctx.clone();
         let renderer = RenderHandle::spawn(0, Box::new(move || repaint.request_repaint()))?;
@@ -366,6 +367,7 @@ impl PortalViewApp {
             sampler: self.settings.sampler,
             mixture: self.settings.mixture,
             selection: self.settings.selection,
+            glass: self.settings.glass,
         }
     }
 
@@ -821,7 +823,12 @@ impl PortalViewApp {
                 &settings.compare,
                 settings.max_depth,
                 settings.alpha,
-                (settings.sampler, settings.mixture, settings.selection),
+                (
+                    settings.sampler,
+                    settings.mixture,
+                    settings.selection,
+                    settings.glass,
+                ),
             );
             self.compare.show(
                 ui,
@@ -866,6 +873,7 @@ pub struct ViewOptions {
     pub sampler: Option<SamplerKind>,
     pub mixture: Option<Mixture>,
     pub selection: Option<Selection>,
+    pub glass: Option<GlassShadows>,
     /// Replaces the start-up scene's environment (the command line's `--environment…`).
     pub environment: EnvironmentOverrides,
 }

@@ -3,6 +3,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::light::{Mixture, Selection, Strategy};
+use crate::render::integrator::GlassShadows;
 use crate::sampling::SamplerKind;
 
 use super::compare_view::CompareViewSettings;
@@ -23,6 +24,8 @@ pub struct ViewerSettings {
     /// How a shading point picks the light it samples (settings saved before it existed
     /// load with the default, as the container's `serde(default)` fills missing fields).
     pub selection: Selection,
+    /// What shadow rays do at thin glass.
+    pub glass: GlassShadows,
     /// Exposure in stops.
     pub exposure: f32,
     /// Show log-luminance in false colour instead of the tone-mapped image.
@@ -56,6 +59,7 @@ impl Default for ViewerSettings {
             sampler: SamplerKind::default(),
             mixture: Mixture::default(),
             selection: Selection::default(),
+            glass: GlassShadows::default(),
             exposure: 0.0,
             false_colour: false,
             resolution_scale: 0.5,

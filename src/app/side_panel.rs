@@ -7,6 +7,7 @@ use super::overlay::{self, OverlayKind};
 use super::{Command, PortalViewApp, ViewMode, ViewerSettings};
 use crate::light::antishadow::Region;
 use crate::light::{Mixture, Selection, Strategy, Technique};
+use crate::render::integrator::GlassShadows;
 use crate::render::primary::SPREAD_SHARE;
 use crate::sampling::SamplerKind;
 
@@ -51,6 +52,7 @@ impl PortalViewApp {
             sampler,
             mixture,
             selection,
+            glass,
             exposure,
             false_colour,
             resolution_scale,
@@ -116,6 +118,19 @@ impl PortalViewApp {
             );
             for s in Selection::ALL {
                 if ui.selectable_value(selection, s, s.name()).changed() {
+                    commands.push(Command::Restart);
+                }
+            }
+        });
+        ui.horizontal(|ui| {
+            ui.label("glass").on_hover_text(
+                "What shadow rays do at smooth thin glass (window panes, a bulb's globe). pass: \
+                 they cross it, weighted by its transmittance, so lights and windows behind \
+                 glass are sampled directly. stop: glass blocks them, as in Cycles, and light \
+                 crosses it only along bounced paths (the same image, far noisier).",
+            );
+            for g in GlassShadows::ALL {
+                if ui.selectable_value(glass, g, g.label()).changed() {
                     commands.push(Command::Restart);
                 }
             }

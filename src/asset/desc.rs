@@ -43,6 +43,8 @@ pub struct MaterialTextures {
     pub specular: Option<TextureRef>,
     /// `KHR_materials_specular` `specularColorTexture`: sRGB colour.
     pub specular_color: Option<TextureRef>,
+    /// `KHR_materials_transmission` `transmissionTexture`: the factor in R.
+    pub transmission: Option<TextureRef>,
 }
 
 impl MaterialTextures {
@@ -59,6 +61,7 @@ impl MaterialTextures {
             self.emissive.as_ref(),
             self.specular.as_ref(),
             self.specular_color.as_ref(),
+            self.transmission.as_ref(),
         ]
         .into_iter()
         .flatten()
@@ -84,6 +87,10 @@ pub struct MaterialDesc {
     pub specular_color: Vec3,
     /// `KHR_materials_ior` `ior` (1.5 when absent): 0 (infinite, F0 = 1) or ≥ 1.
     pub ior: f32,
+    /// `KHR_materials_transmission` `transmissionFactor` in [0, 1] (0 when absent): the share
+    /// of the dielectric base that transmits instead of scattering diffusely. Without
+    /// `KHR_materials_volume` the surface is thin-walled: light goes straight through it.
+    pub transmission: f32,
     pub double_sided: bool,
     /// `baseColorFactor`'s alpha.
     pub alpha: f32,
@@ -95,6 +102,9 @@ pub struct MaterialDesc {
 pub const DEFAULT_SPECULAR_FACTOR: f32 = 1.0;
 pub const DEFAULT_SPECULAR_COLOR: Vec3 = Vec3::ONE;
 pub const DEFAULT_IOR: f32 = 1.5;
+/// The perceptual roughness up to which transmission goes straight through (a smooth pane):
+/// the roughness whose GGX alpha (its square) is the BSDF's smallest, 1e-3.
+pub const SMOOTH_TRANSMISSION_ROUGHNESS: f32 = 0.032;
 
 impl MaterialDesc {
     pub fn diffuse(name: &str, base_color: Vec3) -> Self {
@@ -108,6 +118,7 @@ impl MaterialDesc {
             specular_factor: DEFAULT_SPECULAR_FACTOR,
             specular_color: DEFAULT_SPECULAR_COLOR,
             ior: DEFAULT_IOR,
+            transmission: 0.0,
             double_sided: true,
             alpha: 1.0,
             alpha_mode: AlphaMode::Opaque,
@@ -145,6 +156,21 @@ impl MaterialDesc {
     /// Whether the IOR differs from glTF's default.
     pub fn has_ior_extension(&self) -> bool {
         self.ior != DEFAULT_IOR
+    }
+
+    /// Whether the material transmits (so a file must say it with `KHR_materials_transmission`).
+    pub fn has_transmission_extension(&self) -> bool {
+        self.transmission > 0.0 || self.textures.transmission.is_some()
+    }
+
+    /// Clear glass as glTF describes it: a white, smooth, fully transmitting dielectric of
+    /// glTF's default IOR, thin-walled (a window pane's surfaces, a globe's shell).
+    pub fn clear_glass(name: &str) -> Self {
+        MaterialDesc {
+            roughness: 0.0,
+            transmission: 1.0,
+            ..MaterialDesc::diffuse(name, Vec3::ONE)
+        }
     }
 }
 

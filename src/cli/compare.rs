@@ -9,14 +9,15 @@ use super::ImageArgs;
 use crate::compare::report::sci;
 use crate::compare::*;
 use crate::light::{Selection, Strategy};
+use crate::render::integrator::GlassShadows;
 
 /// `portalview compare`: every strategy gets the same pass render time; MSE against a reference
 /// is recorded as they converge. Writes convergence.csv, convergence.svg and summary.md into
 /// --out (with --figure8: one subfolder per scene, plus figure8.csv, figure8.md, figure8.svg).
 #[derive(Args, Debug, Clone)]
 pub struct CompareArgs {
-    /// Built-in name (lampshade, fig8a, fig8b, fig8c, window, windows2, desklamp) or a .gltf/.glb
-    /// path.
+    /// Built-in name (lampshade, fig8a, fig8b, fig8c, window, windows2, desklamp, livingroom,
+    /// panes, pendant) or a .gltf/.glb path.
     #[arg(long, required_unless_present = "figure8", conflicts_with = "figure8")]
     pub scene: Option<String>,
     /// Compare on fig8a, fig8b and fig8c (the thesis's Figure 8).
@@ -30,6 +31,12 @@ pub struct CompareArgs {
     /// --out/SELECTION, and the efficiency of the second over the first printed per strategy.
     #[arg(long, value_enum, value_delimiter = ',', default_values_t = [Selection::Tree])]
     pub light_selection: Vec<Selection>,
+    /// What shadow rays do at smooth thin glass, comma-separated: with two (`pass,stop`),
+    /// every strategy is rendered with each, side by side at equal time, each one's files in
+    /// --out/glass-pass and --out/glass-stop, and the efficiency of the second over the first
+    /// printed per strategy. Stop is what Cycles does.
+    #[arg(long, value_enum, value_delimiter = ',', default_values_t = [GlassShadows::Pass])]
+    pub glass_shadows: Vec<GlassShadows>,
     /// Pass render time per strategy, in seconds (the whole run takes this times the number
     /// of strategies, plus the reference).
     #[arg(long)]
@@ -93,15 +100,27 @@ pub fn run(args: &CompareArgs) -> Result<()> {
         !args.light_selection.is_empty(),
         "--light-selection lists none"
     );
+    anyhow::ensure!(!args.glass_shadows.is_empty(), "--glass-shadows lists none");
     anyhow::ensure!(
-        !args.figure8 || args.light_selection.len() == 1,
-        "--figure8 takes one --light-selection"
+        !args.figure8 || (args.light_selection.len() == 1 && args.glass_shadows.len() == 1),
+        "--figure8 takes one --light-selection and one --glass-shadows"
+    );
+    anyhow::ensure!(
+        args.light_selection.len() == 1 || args.glass_shadows.len() == 1,
+        "compare one of --light-selection and --glass-shadows at a time"
     );
     for (i, s) in args.light_selection.iter().enumerate() {
         anyhow::ensure!(
             !args.light_selection[..i].contains(s),
             "--light-selection lists {} twice",
             s.name()
+        );
+    }
+    for (i, g) in args.glass_shadows.iter().enumerate() {
+        anyhow::ensure!(
+            !args.glass_shadows[..i].contains(g),
+            "--glass-shadows lists {} twice",
+            g.label()
         );
     }
     anyhow::ensure!(args.runs > 0, "--runs must be at least 1");
@@ -215,37 +234,40 @@ pub fn run(args: &CompareArgs) -> Result<()> {
         } else {
             args.out.clone()
         };
-        let selections = &args.light_selection;
-        // Per selection, its folder and its runs (one per seed).
-        let dirs: Vec<PathBuf> = selections
+        let variants = Variant::all(&args.light_selection, &args.glass_shadows);
+        // Per variant, its folder and its runs (one per seed).
+        let dirs: Vec<PathBuf> = variants
             .iter()
-            .map(|s| match selections.len() {
+            .map(|v| match variants.len() {
                 1 => dir.clone(),
-                _ => dir.join(s.name()),
+                _ => dir.join(v.folder()),
             })
             .collect();
-        let mut runs: Vec<Vec<SceneComparison>> = vec![Vec::new(); selections.len()];
+        let mut runs: Vec<Vec<SceneComparison>> = vec![Vec::new(); variants.len()];
         for &seed in &seeds {
-            let settings: Vec<CompareSettings> = selections
+            let settings: Vec<CompareSettings> = variants
                 .iter()
-                .map(|&selection| CompareSettings {
+                .map(|v| CompareSettings {
                     strategies: args.strategies.clone(),
                     seconds: args.seconds,
                     image,
                     seed,
                     sampler: args.image.sampler,
                     mixture: args.image.mixture,
-                    selection,
+                    selection: v.selection,
+                    glass: v.glass,
                     alpha: args.alpha,
                 })
                 .collect();
             let progress = progress_bar(0, "{bar:40} {msg}  {elapsed_precise}");
             let each = compare_each(&scene, &settings, &reference, &progress);
             progress.finish_and_clear();
-            for ((comparison, dir), runs) in each.into_iter().zip(&dirs).zip(&mut runs) {
-                let label = match selections.len() {
+            for (((comparison, dir), runs), variant) in
+                each.into_iter().zip(&dirs).zip(&mut runs).zip(&variants)
+            {
+                let label = match variants.len() {
                     1 => String::new(),
-                    _ => format!("light selection {}: ", comparison.settings.selection.name()),
+                    _ => format!("{}: ", variant.label()),
                 };
                 if seeds.len() == 1 {
                     written.extend(write_scene_outputs(dir, &comparison)?);
@@ -266,8 +288,8 @@ pub fn run(args: &CompareArgs) -> Result<()> {
                 println!("\n{}", runs_markdown(runs));
             }
         }
-        if let [first, second] = &runs[..] {
-            println!("\n{}", selection_ratios(first, second));
+        if let ([first, second], [a, b]) = (&runs[..], &variants[..]) {
+            println!("\n{}", variant_ratios((a, first), (b, second)));
         }
         comparisons.extend(runs.into_iter().flatten());
     }
@@ -281,18 +303,61 @@ pub fn run(args: &CompareArgs) -> Result<()> {
     Ok(())
 }
 
-/// Per strategy, the efficiency of the second selection's render over the first's, both
+/// One of the configurations `compare` renders side by side: a light selection and what
+/// shadow rays do at glass (at most one of the two varies).
+#[derive(Clone, Copy, Debug)]
+struct Variant {
+    selection: Selection,
+    glass: GlassShadows,
+    /// Which of the two varies.
+    by_glass: bool,
+}
+
+impl Variant {
+    fn all(selections: &[Selection], glass: &[GlassShadows]) -> Vec<Variant> {
+        let by_glass = glass.len() > 1;
+        selections
+            .iter()
+            .flat_map(|&selection| {
+                glass.iter().map(move |&glass| Variant {
+                    selection,
+                    glass,
+                    by_glass,
+                })
+            })
+            .collect()
+    }
+
+    fn folder(&self) -> String {
+        match self.by_glass {
+            true => format!("glass-{}", self.glass.label()),
+            false => self.selection.name().to_owned(),
+        }
+    }
+
+    fn label(&self) -> String {
+        match self.by_glass {
+            true => format!("shadow rays at glass {}", self.glass.label()),
+            false => format!("light selection {}", self.selection.name()),
+        }
+    }
+}
+
+/// Per strategy, the efficiency of the second variant's render over the first's, both
 /// rendered side by side: per seed `e_2 / e_1` (`e = 1 / (MSE × seconds)`, and from the MSE
 /// less the reference's floor), then the mean over the seeds ± its standard error.
-fn selection_ratios(first: &[SceneComparison], second: &[SceneComparison]) -> String {
-    let (Some(a), Some(b)) = (first.first(), second.first()) else {
+fn variant_ratios(
+    (a_variant, first): (&Variant, &[SceneComparison]),
+    (b_variant, second): (&Variant, &[SceneComparison]),
+) -> String {
+    let Some(a) = first.first() else {
         return String::new();
     };
     let mut out = format!(
-        "Efficiency of light selection {} over {}, side by side at equal time ({} run{}):\n\n\
+        "Efficiency of {} over {}, side by side at equal time ({} run{}):\n\n\
          | strategy | efficiency ratio | from MSE − floor |\n|---|---:|---:|\n",
-        b.settings.selection.name(),
-        a.settings.selection.name(),
+        b_variant.label(),
+        a_variant.label(),
         first.len(),
         if first.len() == 1 { "" } else { "s" }
     );

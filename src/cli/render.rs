@@ -11,7 +11,7 @@ use crate::compare::progress_bar;
 use crate::light::Technique;
 use crate::light::antishadow::Region;
 use crate::light::{Selection, Strategy};
-use crate::render::integrator::{Integrator, RenderSettings};
+use crate::render::integrator::{GlassShadows, Integrator, RenderSettings};
 use crate::render::stats::Stats;
 use crate::render::{Isa, film::Film, render_pass, tonemap};
 
@@ -40,6 +40,11 @@ pub struct RenderArgs {
     /// knows their portals, or by power alone.
     #[arg(long, value_enum, default_value_t = Selection::default())]
     pub light_selection: Selection,
+    /// What shadow rays do at smooth thin glass (panes, a bulb's globe): cross it, weighted by
+    /// its transmittance, or stop there as in Cycles (light then crosses glass only along
+    /// BSDF paths: the same image, noisier).
+    #[arg(long, value_enum, default_value_t = GlassShadows::default())]
+    pub glass_shadows: GlassShadows,
     /// Replace every portal's alpha (probability of sampling the light itself).
     #[arg(long)]
     pub alpha: Option<f32>,
@@ -68,6 +73,7 @@ pub fn run(args: &RenderArgs) -> Result<()> {
         sampler: args.image.sampler,
         mixture: args.image.mixture,
         selection: args.light_selection,
+        glass: args.glass_shadows,
     };
     let integrator = Integrator::new(&scene, settings);
     let (film, stats, elapsed) = match args.seconds {

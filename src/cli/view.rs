@@ -6,12 +6,13 @@ use super::EnvironmentArgs;
 use crate::app::ViewOptions;
 use crate::app::overlay::OverlayKind;
 use crate::light::{Mixture, Selection, Strategy};
+use crate::render::integrator::GlassShadows;
 use crate::sampling::SamplerKind;
 
 #[derive(Args, Debug, Clone, Default)]
 pub struct ViewArgs {
-    /// Built-in name (lampshade, fig8a, fig8b, fig8c, window, windows2, desklamp) or a .gltf/.glb
-    /// path.
+    /// Built-in name (lampshade, fig8a, fig8b, fig8c, window, windows2, desklamp, livingroom,
+    /// panes, pendant) or a .gltf/.glb path.
     pub scene: Option<String>,
     /// Start with this strategy (else the one used last).
     #[arg(long, value_enum)]
@@ -35,6 +36,10 @@ pub struct ViewArgs {
     /// How a shading point picks the light it samples (else the one used last).
     #[arg(long, value_enum)]
     pub light_selection: Option<Selection>,
+    /// What shadow rays do at thin glass: pass through it or stop, as in Cycles (else the one
+    /// used last).
+    #[arg(long, value_enum)]
+    pub glass_shadows: Option<GlassShadows>,
     /// The start-up scene's sky, as for `render` (replaces the scene's).
     #[command(flatten)]
     pub environment: EnvironmentArgs,
@@ -51,6 +56,7 @@ impl From<ViewArgs> for ViewOptions {
             sampler: a.sampler,
             mixture: a.mixture,
             selection: a.light_selection,
+            glass: a.glass_shadows,
             environment: (&a.environment).into(),
         }
     }

@@ -9,7 +9,7 @@ use super::metrics::{mse, mse_above_floor, relmse};
 use super::reference::{ImageSpec, Reference, ReferenceInfo, ReferenceOrigin};
 use crate::light::{Mixture, Selection, Strategy};
 use crate::render::film::Film;
-use crate::render::integrator::{Integrator, RenderSettings};
+use crate::render::integrator::{GlassShadows, Integrator, RenderSettings};
 use crate::render::stats::Stats;
 use crate::render::{Cancelled, render_pass};
 use crate::sampling::SamplerKind;
@@ -142,6 +142,8 @@ pub struct CompareSettings {
     pub mixture: Mixture,
     /// How the compared renders pick lights.
     pub selection: Selection,
+    /// What the compared renders' shadow rays do at thin glass.
+    pub glass: GlassShadows,
     /// Replaces every portal's and window's alpha in the compared renders (not in the
     /// reference's, whose converged image does not depend on it).
     pub alpha: Option<f32>,
@@ -228,6 +230,7 @@ pub fn compare_each(
                 sampler: settings.sampler,
                 mixture: settings.mixture,
                 selection: settings.selection,
+                glass: settings.glass,
             };
             EqualTime::new(
                 scene.clone(),

@@ -12,7 +12,7 @@ use std::time::Instant;
 use super::metrics::Convergence;
 use crate::light::{Mixture, Selection, Strategy};
 use crate::render::film::Film;
-use crate::render::integrator::{Integrator, RenderSettings};
+use crate::render::integrator::{GlassShadows, Integrator, RenderSettings};
 use crate::render::{Cancelled, render_pass, tonemap};
 use crate::sampling::SamplerKind;
 use crate::scene::Scene;
@@ -265,6 +265,9 @@ pub fn render_reference(
         // The tree: in a room of many lights a reference picked by power converges several
         // times slower; tests/selection.rs shows the two agree.
         selection: Selection::Tree,
+        // Shadow rays through thin glass: the same image as stopping them (tests/glass.rs),
+        // far less noise behind panes.
+        glass: GlassShadows::Pass,
     };
     let integrator = Integrator::new(scene, settings);
     let mut film = Film::new(image.width, image.height);

@@ -611,6 +611,7 @@ mod tests {
                 sampler: Default::default(),
                 mixture: Default::default(),
                 selection: Default::default(),
+                glass: Default::default(),
                 alpha: None,
             },
             reference_info: Some(ReferenceInfo {

@@ -17,7 +17,7 @@ use crate::compare::{
 };
 use crate::light::{Mixture, Selection, Strategy};
 use crate::render::Cancelled;
-use crate::render::integrator::RenderSettings;
+use crate::render::integrator::{GlassShadows, RenderSettings};
 use crate::render::shell::{Outbox, Work, WorkerHandle};
 use crate::sampling::SamplerKind;
 use crate::scene::Scene;
@@ -54,6 +54,8 @@ pub struct CompareRequest {
     pub mixture: Mixture,
     /// How the compared renders pick lights.
     pub selection: Selection,
+    /// What the compared renders' shadow rays do at thin glass.
+    pub glass: GlassShadows,
     pub reference: ReferenceSource,
     /// A reference the UI already holds: used instead of the source when it fits (same
     /// scene, camera, size and depth, and at least the budget; or the same file).
@@ -341,6 +343,7 @@ impl CompareWork {
                         sampler: request.sampler,
                         mixture: request.mixture,
                         selection: request.selection,
+                        glass: request.glass,
                     };
                     let schedule = EqualTime::new(
                         request.scene.clone(),

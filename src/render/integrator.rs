@@ -32,6 +32,43 @@ pub struct RenderSettings {
     pub mixture: Mixture,
     /// How a shading point picks the light it samples.
     pub selection: Selection,
+    /// Whether shadow rays cross thin glass or stop at it.
+    pub glass: GlassShadows,
+}
+
+/// What a shadow ray does at smooth thin-walled glass (a pane, a globe's shell). BSDF paths
+/// cross it either way, as a null interface that is not a path vertex.
+#[derive(
+    Clone,
+    Copy,
+    Debug,
+    Default,
+    PartialEq,
+    Eq,
+    Hash,
+    serde::Serialize,
+    serde::Deserialize,
+    clap::ValueEnum,
+)]
+pub enum GlassShadows {
+    /// Through it, weighted by its straight-through transmittance: lights and windows behind
+    /// glass are sampled as if the glass were a filter (METHOD.md, *Thin glass*).
+    #[default]
+    Pass,
+    /// Stopped, as in Cycles: light reaches the far side of glass along BSDF paths only (whose
+    /// emission after a pane then takes the full weight, as light sampling could not reach it).
+    Stop,
+}
+
+impl GlassShadows {
+    pub const ALL: [GlassShadows; 2] = [GlassShadows::Pass, GlassShadows::Stop];
+
+    pub fn label(self) -> &'static str {
+        match self {
+            GlassShadows::Pass => "pass",
+            GlassShadows::Stop => "stop",
+        }
+    }
 }
 
 impl Default for RenderSettings {
@@ -44,6 +81,7 @@ impl Default for RenderSettings {
             sampler: SamplerKind::default(),
             mixture: Mixture::default(),
             selection: Selection::default(),
+            glass: GlassShadows::default(),
         }
     }
 }
@@ -131,7 +169,12 @@ pub struct Integrator<'a> {
     polygon_lights: bool,
     /// The scene's size ([`crate::scene::Geometry::scale`]), for ray offsets: computed once.
     scale: f32,
+    /// The scene has thin glass that rays cross ([`crate::scene::Geometry::has_panes`]).
+    panes: bool,
 }
+
+/// The most panes one ray crosses; a ray that would cross more is taken as stopped.
+const MAX_PANE_CROSSINGS: u32 = 32;
 
 /// Up to this many polygon lights, the last bounce intersects them directly.
 const DIRECT_LIGHT_TEST_LIMIT: usize = 16;
@@ -160,6 +203,7 @@ impl<'a> Integrator<'a> {
             sky: SkySampler::new(scene, settings.strategy, settings.alpha),
             settings,
             scale: scene.geometry.scale(),
+            panes: scene.geometry.has_panes,
             // A cut-out light lets rays through its holes: it must be found by tracing.
             polygon_lights: area_lights.len() <= DIRECT_LIGHT_TEST_LIMIT
                 && area_lights.iter().all(|l| l.polygon.is_some())
@@ -292,10 +336,40 @@ impl<'a> Integrator<'a> {
             if depth > 0 {
                 stats.bounce_rays += 1;
             }
-            let hit = match camera_hit.take() {
+            let mut hit = match camera_hit.take() {
                 Some(hit) => hit,
                 None => tracer.closest_hit(o, d, 0.0, f32::INFINITY),
             };
+            // Thin glass on the way: crossed as a null interface (no vertex, no depth), with
+            // probability of its transmittance (always at the last vertex, where only
+            // emission beyond it counts), or met as a vertex: its reflection.
+            let mut crossings = 0;
+            while let Some(h) = hit.filter(|_| self.panes) {
+                let Some(transmittance) = self.pane_at(&h, d) else {
+                    break;
+                };
+                let p_pass = if depth == self.settings.max_depth {
+                    1.0
+                } else {
+                    transmittance.max_element().min(1.0)
+                };
+                if p_pass < 1.0 && rng.uniform() >= p_pass {
+                    beta /= 1.0 - p_pass;
+                    break;
+                }
+                beta *= transmittance / p_pass;
+                crossings += 1;
+                if crossings > MAX_PANE_CROSSINGS || beta == Vec3::ZERO {
+                    return l;
+                }
+                // Light sampling through glass is off: what lies beyond takes the full weight.
+                if self.settings.glass == GlassShadows::Stop {
+                    previous = None;
+                }
+                // The same ray from the same origin, so `t` stays the distance to the vertex.
+                let tmin = h.t + Self::epsilon(o + h.t * d, self.scale);
+                hit = tracer.closest_hit(o, d, tmin, f32::INFINITY);
+            }
             let Some(hit) = hit else {
                 l += beta * self.environment_along(d, previous.map(|(x, ng, _, pdf)| (x, ng, pdf)));
                 break;
@@ -437,10 +511,21 @@ impl<'a> Integrator<'a> {
             return Vec3::ZERO;
         }
         stats.shadow_rays += 1;
-        // Stop short of the light so that its own triangles do not occlude it.
-        if tracer.occluded(o, d, 0.0, t * (1.0 - 1e-4) - Self::shadow_gap(self.scale)) {
+        // Stop short of the light so that its own triangles do not occlude it. A BSDF path:
+        // it crosses panes whatever shadow rays do.
+        let tmax = t * (1.0 - 1e-4) - Self::shadow_gap(self.scale);
+        let (transmittance, crossings) = if self.panes {
+            self.through_panes(tracer, o, d, tmax)
+        } else {
+            let open = !tracer.occluded(o, d, 0.0, tmax);
+            (Vec3::splat(open as u8 as f32), 0)
+        };
+        if transmittance == Vec3::ZERO {
             return Vec3::ZERO;
         }
+        let le = le * transmittance;
+        // Light sampling through glass is off: past a pane, the full weight.
+        let prev = prev.filter(|_| crossings == 0 || self.settings.glass == GlassShadows::Pass);
         match prev {
             None => le,
             Some(prev) => {
@@ -686,10 +771,11 @@ impl<'a> Integrator<'a> {
         } else {
             f32::INFINITY
         };
-        if tracer.occluded(s.x, sample.wi, 0.0, tmax) {
+        let transmittance = self.visibility(tracer, s.x, sample.wi, tmax);
+        if transmittance == Vec3::ZERO {
             return Vec3::ZERO;
         }
-        f * sample.irradiance * wi_local.z / lamp_prob
+        f * transmittance * sample.irradiance * wi_local.z / lamp_prob
     }
 
     /// The environment's contribution through the windows: one sample of the sky mixture,
@@ -740,7 +826,7 @@ impl<'a> Integrator<'a> {
             stats.count_technique(sample.technique.technique());
             let light_pdf = env_prob * sample.pdf;
             l += share
-                * Self::weighted(
+                * self.weighted(
                     tracer,
                     s,
                     sample.wi,
@@ -775,14 +861,17 @@ impl<'a> Integrator<'a> {
         // Stop short of the light so that its own triangles do not occlude it.
         let tmax = dist * (1.0 - 1e-4) - Self::shadow_gap(self.scale);
         let light_pdf = light_prob * sample.pdf;
-        Self::weighted(tracer, s, sample.wi, le, light_pdf, tmax, stats)
+        self.weighted(tracer, s, sample.wi, le, light_pdf, tmax, stats)
     }
 
     /// Radiance `le` arriving along `wi`, drawn with density `light_pdf` (selection times
     /// mixture), weighted against BSDF sampling by the power heuristic; zero if something
-    /// stands before `tmax`, or the direction is below the surface or has no density.
+    /// stands before `tmax`, or the direction is below the surface or has no density; times
+    /// the transmittance of the thin glass crossed ([`Self::visibility`]).
+    #[allow(clippy::too_many_arguments)]
     #[inline(always)]
     fn weighted<T: Tracer>(
+        &self,
         tracer: &T,
         s: &Shading,
         wi: Vec3,
@@ -801,10 +890,83 @@ impl<'a> Integrator<'a> {
             return Vec3::ZERO;
         }
         stats.shadow_rays += 1;
-        if tracer.occluded(s.x, wi, 0.0, tmax) {
+        let transmittance = self.visibility(tracer, s.x, wi, tmax);
+        if transmittance == Vec3::ZERO {
             return Vec3::ZERO;
         }
-        f * le * wi_local.z * power_heuristic(light_pdf, bsdf_pdf) / light_pdf
+        f * transmittance * le * wi_local.z * power_heuristic(light_pdf, bsdf_pdf) / light_pdf
+    }
+
+    /// What a shadow ray lets through on the open segment `o + t·d`, `t` in `(0, tmax)`: 0
+    /// if something stands there, else 1, or with [`GlassShadows::Pass`] the product of the
+    /// straight-through transmittances of the panes it crosses (METHOD.md, *Thin glass*:
+    /// the sample's pdf is unchanged, the panes are a filter on its radiance).
+    #[inline(always)]
+    fn visibility<T: Tracer>(&self, tracer: &T, o: Vec3, d: Vec3, tmax: f32) -> Vec3 {
+        if self.panes && self.settings.glass == GlassShadows::Pass {
+            return self.through_panes(tracer, o, d, tmax).0;
+        }
+        if tracer.occluded(o, d, 0.0, tmax) {
+            Vec3::ZERO
+        } else {
+            Vec3::ONE
+        }
+    }
+
+    /// The product of the straight-through transmittances of the thin glass on the open
+    /// segment `o + t·d`, `t` in `(0, tmax)`, and how many panes it crosses: zero if
+    /// anything else stands there (or more than [`MAX_PANE_CROSSINGS`] panes).
+    #[inline(always)]
+    fn through_panes<T: Tracer>(&self, tracer: &T, o: Vec3, d: Vec3, tmax: f32) -> (Vec3, u32) {
+        let mut transmittance = Vec3::ONE;
+        let mut tmin = 0.0;
+        for crossings in 0..=MAX_PANE_CROSSINGS {
+            let Some(hit) = tracer.closest_hit(o, d, tmin, tmax) else {
+                return (transmittance, crossings);
+            };
+            let Some(pane) = self.pane_at(&hit, d) else {
+                break;
+            };
+            transmittance *= pane;
+            if transmittance == Vec3::ZERO {
+                break;
+            }
+            tmin = hit.t + Self::epsilon(o + hit.t * d, self.scale);
+        }
+        (Vec3::ZERO, 0)
+    }
+
+    /// The straight-through transmittance ([`Material::straight_through`]) of the surface
+    /// that `hit` meets along `d`, at its point (textures included), or `None` where it does
+    /// not transmit: an opaque surface, or a light's (lights are opaque emitters).
+    #[inline(always)]
+    fn pane_at(&self, hit: &Hit, d: Vec3) -> Option<Vec3> {
+        let geometry = &*self.scene.geometry;
+        let tri = &geometry.triangles[hit.triangle as usize];
+        let material = &geometry.materials[tri.material as usize];
+        if tri.light != NO_LIGHT || !material.transmits() {
+            return None;
+        }
+        let (_, ns) = tri.point(hit.bary);
+        let n = if ns == Vec3::ZERO {
+            tri.geometric_normal()
+        } else {
+            ns
+        };
+        let cos_o = d.dot(n).abs();
+        let surface = geometry
+            .surfaces
+            .get(tri.material as usize)
+            .and_then(Option::as_ref);
+        let point = (tri.attributes != NO_ATTRIBUTES)
+            .then(|| geometry.attributes.get(tri.attributes as usize))
+            .flatten();
+        Some(match (surface, point) {
+            (Some(s), Some(a)) => s
+                .material(&a.at(hit.bary).uvs, cos_o)
+                .straight_through(cos_o),
+            _ => material.straight_through(cos_o),
+        })
     }
 
     /// The light technique's pdf (selection times mixture) for the direction `d` from the

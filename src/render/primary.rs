@@ -183,7 +183,8 @@ fn classify_ray(
 ) -> PixelClass {
     let (o, d) = scene.camera.ray(ndc, aspect);
     let g = &scene.geometry;
-    let Some(hit) = g.bvh.closest_hit(o, d, 0.0, f32::INFINITY) else {
+    // Through thin glass, to the surface the path tracer shades behind it.
+    let Some(hit) = g.closest_hit_through_panes(o, d, 0.0, f32::INFINITY) else {
         return (
             None,
             vec![None; scene.portals.len() + scene.windows.len()],

@@ -23,7 +23,7 @@ use crate::light::punctual::Lamp;
 use crate::light::window::Window;
 use crate::material::Material;
 use crate::surface::{MissingImage, SurfacePoint, SurfaceTextures};
-use bvh::{Bvh, CutoutTriangle};
+use bvh::{Bvh, CutoutTriangle, Hit};
 
 /// Why a scene cannot be used.
 #[derive(Debug, thiserror::Error)]
@@ -206,6 +206,9 @@ pub struct Geometry {
     /// The radius of a sphere bounding the triangles and the lamps' positions (the
     /// environment's and directional lamps' power is the light falling on it).
     pub radius: f32,
+    /// Whether any triangle other than a light's is thin glass ([`Material::transmits`]):
+    /// rays then cross it (the integrator's panes).
+    pub has_panes: bool,
 }
 
 impl Geometry {
@@ -213,7 +216,44 @@ impl Geometry {
     pub fn scale(&self) -> f32 {
         (self.bounds.1 - self.bounds.0).length().max(1e-3)
     }
+
+    /// Whether triangle `triangle` is thin glass that rays cross ([`Material::transmits`];
+    /// a light's triangles never are).
+    pub fn is_pane(&self, triangle: u32) -> bool {
+        self.triangles.get(triangle as usize).is_some_and(|t| {
+            t.light == NO_LIGHT
+                && self
+                    .materials
+                    .get(t.material as usize)
+                    .is_some_and(Material::transmits)
+        })
+    }
+
+    /// The closest hit of `origin + t·dir`, `t` in `(tmin, tmax)`, that is not thin glass:
+    /// what a ray sees through the panes that the renderer's rays cross, as the portal finder,
+    /// its check, the overlays and the tools see it. After [`MAX_PANES_SEEN_THROUGH`] panes,
+    /// the last one.
+    pub fn closest_hit_through_panes(
+        &self,
+        origin: Vec3,
+        dir: Vec3,
+        tmin: f32,
+        tmax: f32,
+    ) -> Option<Hit> {
+        let mut hit = self.bvh.closest_hit(origin, dir, tmin, tmax)?;
+        for _ in 0..MAX_PANES_SEEN_THROUGH {
+            if !self.has_panes || !self.is_pane(hit.triangle) {
+                break;
+            }
+            let tmin = hit.t * (1.0 + 1e-5) + 1e-7 * self.scale();
+            hit = self.bvh.closest_hit(origin, dir, tmin, tmax)?;
+        }
+        Some(hit)
+    }
 }
+
+/// The most panes [`Geometry::closest_hit_through_panes`] looks through.
+pub const MAX_PANES_SEEN_THROUGH: usize = 32;
 
 /// A validated scene: shared geometry plus its portals and camera.
 #[derive(Clone)]
@@ -383,7 +423,11 @@ impl Scene {
                 cutout_surfaces,
             );
         }
+        let has_panes = triangles
+            .iter()
+            .any(|t| t.light == NO_LIGHT && materials[t.material as usize].transmits());
         let geometry = Arc::new(Geometry {
+            has_panes,
             bvh,
             triangles,
             materials,

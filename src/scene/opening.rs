@@ -100,10 +100,11 @@ pub fn fit_opening(scene: &Scene, camera: &Camera, ndc: Vec2, aspect: f32) -> Op
         step: scale / STEPS_PER_SCALE,
         reach: scale,
     };
-    let bvh = &scene.geometry.bvh;
     let (o, d) = camera.ray(ndc, aspect);
-    let t_mouse = bvh
-        .closest_hit(o, d, 0.0, f32::INFINITY)
+    // A glazed opening is an opening: the panes are looked through.
+    let t_mouse = scene
+        .geometry
+        .closest_hit_through_panes(o, d, 0.0, f32::INFINITY)
         .map_or(f32::INFINITY, |h| h.t);
     // Where the mouse ray crosses each candidate plane, nearest first.
     let mut crossings: Vec<(f32, Vec3)> = candidate_planes(scene, camera, ndc, aspect, probe.eps)
@@ -142,7 +143,7 @@ fn candidate_planes(
             // Rings are round on screen: the horizontal offset is divided by the aspect.
             let p = ndc + Vec2::new(r * a.cos() / aspect.max(1e-3), r * a.sin());
             let (o, d) = camera.ray(p, aspect);
-            let Some(hit) = geometry.bvh.closest_hit(o, d, 0.0, f32::INFINITY) else {
+            let Some(hit) = geometry.closest_hit_through_panes(o, d, 0.0, f32::INFINITY) else {
                 continue;
             };
             let Some(triangle) = geometry.triangles.get(hit.triangle as usize) else {

@@ -127,7 +127,8 @@ pub fn find(scene: &Scene) -> Found {
 }
 
 /// Traces from `origin` along `dir`, through the triangles of light `skip` (a light is not its
-/// own enclosure): the distance to the first other surface, or infinity.
+/// own enclosure) and through thin glass (a glazed window or lamp opening is an opening, as
+/// the renderer's rays cross it): the distance to the first other surface, or infinity.
 fn depth(scene: &Scene, skip: Option<usize>, origin: Vec3, dir: Vec3) -> f32 {
     let geometry = &scene.geometry;
     let mut tmin = 0.0;
@@ -142,7 +143,7 @@ fn depth(scene: &Scene, skip: Option<usize>, origin: Vec3, dir: Vec3) -> f32 {
                 .get(hit.triangle as usize)
                 .is_some_and(|t| t.light as usize == light)
         });
-        if !own {
+        if !own && !geometry.is_pane(hit.triangle) {
             return hit.t;
         }
         tmin = hit.t * (1.0 + 1e-5) + 1e-7 * geometry.scale();
@@ -685,7 +686,7 @@ fn camera_points(scene: &Scene) -> Vec<(Vec3, Vec3)> {
                 (row as f32 + 0.5) / rows as f32,
             );
             let (o, d) = scene.camera.ray(ndc, aspect);
-            let Some(hit) = geometry.bvh.closest_hit(o, d, 0.0, f32::INFINITY) else {
+            let Some(hit) = geometry.closest_hit_through_panes(o, d, 0.0, f32::INFINITY) else {
                 continue;
             };
             let Some(triangle) = geometry.triangles.get(hit.triangle as usize) else {
@@ -1055,7 +1056,11 @@ pub fn check_sky(scene: &Scene, found: &[Opening], seed: u64) -> SourceCheck {
         {
             drawn += 1;
             let d = frame.to_world(sample_cosine_hemisphere(rng.uniform2()));
-            if geometry.bvh.occluded(p, d, 0.0, f32::INFINITY) {
+            // Light through thin glass leaves as the renderer's rays do.
+            if geometry
+                .closest_hit_through_panes(p, d, 0.0, f32::INFINITY)
+                .is_some()
+            {
                 continue;
             }
             escaped += 1;

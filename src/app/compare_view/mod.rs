@@ -25,6 +25,7 @@ use crate::compare::worker::{
 };
 use crate::compare::{ImageSpec, Reference, ReferenceBudget, default_cache_dir, scene_hash};
 use crate::light::{Mixture, Selection, Strategy};
+use crate::render::integrator::GlassShadows;
 use crate::sampling::SamplerKind;
 use crate::scene::Scene;
 
@@ -104,6 +105,7 @@ struct RequestKey {
     sampler: SamplerKind,
     mixture: Mixture,
     selection: Selection,
+    glass: GlassShadows,
     reference: ReferenceSource,
 }
 
@@ -245,7 +247,7 @@ impl CompareView {
         settings: &CompareViewSettings,
         max_depth: u32,
         alpha: Option<f32>,
-        (sampler, mixture, selection): (SamplerKind, Mixture, Selection),
+        (sampler, mixture, selection, glass): (SamplerKind, Mixture, Selection, GlassShadows),
     ) {
         self.poll();
         if let Some(frame) = &self.frame
@@ -281,6 +283,7 @@ impl CompareView {
             sampler,
             mixture,
             selection,
+            glass,
             reference,
         };
         if self.worker.is_some() && self.running.as_ref() == Some(&key) {
@@ -309,6 +312,7 @@ impl CompareView {
             sampler,
             mixture,
             selection,
+            glass,
             reference: key.reference.clone(),
             known_reference: self.last_reference.clone(),
             paused: self.paused,

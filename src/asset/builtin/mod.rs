@@ -2,8 +2,9 @@
 //! `lampshade` (the thesis's Figure 1), `fig8a`, `fig8b`, `fig8c` (its Figure 8), `window`,
 //! `windows2` (a room lit by the sky through window portals), `desklamp` (an artist's scene
 //! as Blender exports it: textures, a normal map, a point lamp and a bulb mesh behind portals),
-//! and `livingroom` (many lights in one room: eight lamps, six ceiling cans and a window, each
-//! behind its portals).
+//! `livingroom` (many lights in one room: eight lamps, six ceiling cans and a window, each
+//! behind its portals), and glass: `panes` (`windows2` with a glass pane in each window) and
+//! `pendant` (a bulb in a clear glass globe, in a room lit through a glazed window).
 
 mod livingroom;
 
@@ -22,7 +23,7 @@ use crate::asset::texture::{Image, Sampler, TextureRef};
 use crate::camera::Camera;
 
 /// Names of the built-in scenes.
-pub const NAMES: [&str; 8] = [
+pub const NAMES: [&str; 10] = [
     "lampshade",
     "fig8a",
     "fig8b",
@@ -31,6 +32,8 @@ pub const NAMES: [&str; 8] = [
     "windows2",
     "desklamp",
     "livingroom",
+    "panes",
+    "pendant",
 ];
 
 /// The built-in scene `name`, if there is one.
@@ -42,6 +45,8 @@ pub fn desc(name: &str) -> Option<SceneDesc> {
         "fig8c" => Some(figure8(Figure8::C)),
         "window" => Some(room_with_windows("window", false)),
         "windows2" => Some(room_with_windows("windows2", true)),
+        "panes" => Some(panes()),
+        "pendant" => Some(pendant()),
         "desklamp" => Some(desklamp()),
         "livingroom" => Some(livingroom::livingroom()),
         _ => None,
@@ -724,6 +729,129 @@ fn room_with_windows(name: &str, two: bool) -> SceneDesc {
     // The measurements in docs/performance.md were made on this sky's pixels as cells.
     b.desc.environment = Some(generated_sky(Interpolation::Closest));
     b.camera(Vec3::new(1.5, 1.5, 1.85), Vec3::new(-0.4, 0.7, -0.6), 62.0);
+    b.desc
+}
+
+/// How far outside the wall plane a window's pane stands: its inner face 1 cm out, so the
+/// window portal (in the wall's plane) lies 1 cm inside the glass, as an artist places it.
+const PANE_GAP: f32 = 0.01;
+/// A pane's thickness: 6 mm of glass, modelled as a closed slab (two thin-walled surfaces).
+const PANE_THICKNESS: f32 = 0.006;
+/// How far a pane reaches past its opening's edges, behind the wall, so no ray slips around it.
+const PANE_OVERLAP: f32 = 0.03;
+
+/// The closed slab over the convex polygon `corners` (in a plane) between offsets `near` and
+/// `far` along `normal`, grown by `grow` about its centroid: a pane of glass. Faces point out.
+pub fn slab(corners: &[Vec3], normal: Vec3, (near, far): (f32, f32), grow: f32) -> Vec<Vec<Vec3>> {
+    let centre = corners.iter().copied().sum::<Vec3>() / corners.len() as f32;
+    let grown: Vec<Vec3> = corners
+        .iter()
+        .map(|&p| p + (p - centre).normalize_or_zero() * grow)
+        .collect();
+    let near_face: Vec<Vec3> = grown.iter().map(|&p| p + near * normal).collect();
+    let far_face: Vec<Vec3> = grown.iter().map(|&p| p + far * normal).collect();
+    let mid = centre + 0.5 * (near + far) * normal;
+    let out = |face: Vec<Vec3>| {
+        let c = face.iter().copied().sum::<Vec3>() / face.len() as f32;
+        facing(face, c - mid)
+    };
+    let n = grown.len();
+    let mut faces = vec![out(near_face.clone()), out(far_face.clone())];
+    for i in 0..n {
+        let j = (i + 1) % n;
+        faces.push(out(vec![
+            near_face[i],
+            near_face[j],
+            far_face[j],
+            far_face[i],
+        ]));
+    }
+    faces
+}
+
+/// `windows2` with glass in both windows, as an artist models it: each pane a 6 mm slab of
+/// clear glass (glTF transmission, thin-walled: no volume) 1 cm outside its window portal.
+/// The same room, sky and camera, so its renders compare with `windows2`'s.
+fn panes() -> SceneDesc {
+    let mut desc = room_with_windows("panes", true);
+    add_panes(&mut desc);
+    desc
+}
+
+/// A pane over every window portal of `desc`, outside the room (behind the portal's front).
+fn add_panes(desc: &mut SceneDesc) {
+    let glass = desc.materials.len();
+    desc.materials.push(MaterialDesc::clear_glass("glass"));
+    let windows: Vec<(String, Vec<Vec3>)> = desc
+        .portals
+        .iter()
+        .filter(|p| p.is_window())
+        .filter_map(|p| {
+            let fan = p.world_triangles();
+            let mut corners: Vec<Vec3> = vec![fan.first()?[0]];
+            corners.extend(fan.iter().flat_map(|t| [t[1], t[2]]));
+            corners.dedup();
+            Some((p.name.clone(), corners))
+        })
+        .collect();
+    for (name, corners) in windows {
+        // The portal faces into the room: the pane stands on its back.
+        let inward = (corners[1] - corners[0])
+            .cross(corners[2] - corners[0])
+            .normalize();
+        let faces = slab(
+            &corners,
+            -inward,
+            (PANE_GAP, PANE_GAP + PANE_THICKNESS),
+            PANE_OVERLAP,
+        );
+        desc.meshes
+            .push(flat_mesh(&format!("{name}_pane"), glass, &faces));
+    }
+}
+
+/// A pendant lamp whose bulb hangs inside a clear glass globe (two concentric spheres of thin
+/// glass, as Blender exports them), in the `window` room, whose window has a pane. The bulb
+/// has no portal: its light is sampled through the globe.
+fn pendant() -> SceneDesc {
+    let mut desc = room_with_windows("pendant", false);
+    add_panes(&mut desc);
+    let mut b = Builder { desc };
+    let glass = b
+        .desc
+        .materials
+        .iter()
+        .position(|m| m.name == "glass")
+        .unwrap_or_default();
+    let cord = b.material(MaterialDesc::diffuse("cord", Vec3::splat(0.05)));
+    let bulb = b.material(MaterialDesc::emitter(
+        "bulb",
+        Vec3::new(2000.0, 1800.0, 1500.0),
+        true,
+    ));
+    let centre = Vec3::new(0.3, 1.75, -0.2);
+    let (r_outer, r_inner, r_bulb) = (0.12, 0.114, 0.03);
+    b.cuboid(
+        "cord",
+        cord,
+        centre + Vec3::new(-0.004, r_outer, -0.004),
+        Vec3::new(centre.x + 0.004, 2.6, centre.z + 0.004),
+    );
+    b.desc
+        .meshes
+        .push(uv_sphere("globe_outer", glass, centre, r_outer, 32, 16));
+    // The inner surface faces into the globe: its triangles wound the other way.
+    let mut inner = uv_sphere("globe_inner", glass, centre, r_inner, 32, 16);
+    for t in &mut inner.indices {
+        t.swap(1, 2);
+    }
+    for n in &mut inner.normals {
+        *n = -*n;
+    }
+    b.desc.meshes.push(inner);
+    b.desc
+        .meshes
+        .push(uv_sphere("bulb", bulb, centre, r_bulb, 12, 6));
     b.desc
 }
 

@@ -48,7 +48,8 @@ use serde_json::{Map, Value};
 
 use crate::asset::desc::{
     AlphaMode, DEFAULT_IOR, DEFAULT_PORTAL_ALPHA, DEFAULT_SPECULAR_COLOR, DEFAULT_SPECULAR_FACTOR,
-    MaterialDesc, MaterialTextures, MeshDesc, NormalTexture, PortalDesc, SceneDesc,
+    MaterialDesc, MaterialTextures, MeshDesc, NormalTexture, PortalDesc,
+    SMOOTH_TRANSMISSION_ROUGHNESS, SceneDesc,
 };
 use crate::asset::texture::TextureRef;
 use crate::camera::Camera;
@@ -66,6 +67,8 @@ const CAMERA_TARGET_DISTANCE_KEY: &str = "portalview_target_distance";
 const EMISSIVE_STRENGTH_EXTENSION: &str = "KHR_materials_emissive_strength";
 const SPECULAR_EXTENSION: &str = "KHR_materials_specular";
 const IOR_EXTENSION: &str = "KHR_materials_ior";
+const TRANSMISSION_EXTENSION: &str = "KHR_materials_transmission";
+const VOLUME_EXTENSION: &str = "KHR_materials_volume";
 /// Width over height of a perspective camera without `aspectRatio`.
 const DEFAULT_ASPECT: f32 = 4.0 / 3.0;
 

@@ -820,6 +820,58 @@ pub(super) fn material_desc(
             ));
         }
     }
+    let mut transmission = 0.0;
+    if let Some(extension) = extension(TRANSMISSION_EXTENSION)? {
+        let field = |key: &str| format!("{at}, extensions.{TRANSMISSION_EXTENSION}.{key}");
+        if let Some(value) = extension.get("transmissionFactor") {
+            transmission = number(file, &field("transmissionFactor"), value)?;
+            if !(0.0..=1.0).contains(&transmission) {
+                return Err(invalid(
+                    file,
+                    field("transmissionFactor"),
+                    format!("must be in [0, 1], found {value}"),
+                ));
+            }
+        }
+        if let Some(info) = extension.get("transmissionTexture") {
+            let at = field("transmissionTexture");
+            textures.transmission = Some(doc.texture_ref(info, &at, images)?);
+        }
+    }
+    if let Some(volume) = extension(VOLUME_EXTENSION)? {
+        let at = format!("{at}, extensions.{VOLUME_EXTENSION}.thicknessFactor");
+        let thickness = match volume.get("thicknessFactor") {
+            Some(value) => number(file, &at, value)?,
+            None => 0.0,
+        };
+        if thickness < 0.0 {
+            return Err(invalid(file, at, "must not be negative"));
+        }
+        // The spec: thickness 0 is thin-walled, which is what is rendered.
+        if thickness > 0.0 && transmission > 0.0 {
+            warnings.push(format!(
+                "{}: {at} is {thickness}: a closed volume that refracts is not rendered yet; \
+                 its surfaces are rendered as thin-walled glass (straight through)",
+                file.display()
+            ));
+        }
+    }
+    let emits = (emissive_factor * emissive_strength).max_element() > 0.0;
+    if transmission > 0.0 && emits {
+        warnings.push(format!(
+            "{}: {at}: emits and transmits: a light's surface is rendered opaque, so its \
+             transmission is not rendered",
+            file.display()
+        ));
+    }
+    if transmission > 0.0 && roughness > SMOOTH_TRANSMISSION_ROUGHNESS {
+        warnings.push(format!(
+            "{}: {at}: transmission with roughness {roughness}: rough transmission is not \
+             rendered yet; it goes straight through as if smooth (roughness at most \
+             {SMOOTH_TRANSMISSION_ROUGHNESS}); its reflection keeps the roughness",
+            file.display()
+        ));
+    }
     Ok(MaterialDesc {
         name: m
             .name
@@ -833,6 +885,7 @@ pub(super) fn material_desc(
         specular_factor,
         specular_color,
         ior,
+        transmission,
         double_sided: m.double_sided,
         alpha,
         alpha_mode,
@@ -894,6 +947,7 @@ fn core_textures(
         emissive,
         specular: None,
         specular_color: None,
+        transmission: None,
     })
 }
 

@@ -65,12 +65,14 @@ pub(super) fn parse_document(file: &Path, json_bytes: &[u8]) -> Result<json::Roo
     })
 }
 
-/// The extensions that are read: emissive strength and the specular layer's factors and IOR
-/// change the materials, quantized attributes are read as normalised integers.
-pub(super) const READ_EXTENSIONS: [&str; 6] = [
+/// The extensions that are read: emissive strength, the specular layer's factors, IOR and
+/// transmission change the materials (a volume's thickness only warns: see `read.rs`), quantized attributes are read as normalised integers.
+pub(super) const READ_EXTENSIONS: [&str; 8] = [
     EMISSIVE_STRENGTH_EXTENSION,
     SPECULAR_EXTENSION,
     IOR_EXTENSION,
+    TRANSMISSION_EXTENSION,
+    VOLUME_EXTENSION,
     "KHR_mesh_quantization",
     "KHR_lights_punctual",
     TEXTURE_TRANSFORM_EXTENSION,

@@ -456,6 +456,21 @@ pub(super) fn export_material(
             .others
             .insert(IOR_EXTENSION.to_owned(), Value::Object(ior));
     }
+    if m.has_transmission_extension() {
+        used.push(TRANSMISSION_EXTENSION);
+        let mut transmission = Map::new();
+        transmission.insert("transmissionFactor".to_owned(), json_f32(m.transmission));
+        if let Some(r) = &t.transmission {
+            transmission.insert(
+                "transmissionTexture".to_owned(),
+                textures.info_json(r, &mut used),
+            );
+        }
+        extensions.others.insert(
+            TRANSMISSION_EXTENSION.to_owned(),
+            Value::Object(transmission),
+        );
+    }
     let has_material_extension =
         !extensions.others.is_empty() || extensions.emissive_strength.is_some();
     let (alpha_mode, alpha_cutoff) = match m.alpha_mode {
