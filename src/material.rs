@@ -3,11 +3,13 @@
 //! with a GGX metal.
 //!
 //! Transmission (thin-walled, as glTF means a surface without `KHR_materials_volume`) takes
-//! the share `transmission` of the dielectric base from the diffuse and sends it straight
-//! through: `T(wo) = (1 − metallic)·(1 − E(wo))·transmission·baseColor`, a delta lobe that
-//! changes no direction ([`Material::straight_through`]). The integrator crosses such a
-//! surface as a null interface (METHOD.md, *Thin glass*), so [`Material::eval_pdf`] and
-//! [`Material::sample`] are the reflection alone.
+//! the share `transmission` of the dielectric base from the diffuse and sends it through:
+//! `T(wo) = (1 − metallic)·(1 − E(wo))·transmission·baseColor`. Smooth, it is a delta lobe that
+//! changes no direction ([`Material::straight_through`]): the integrator crosses such a surface
+//! as a null interface (METHOD.md, *Thin glass*), so [`Material::eval_pdf`] and
+//! [`Material::sample`] are the reflection alone. Rough, it is the GGX lobe about the
+//! straight-through direction (the reflection lobe mirrored through the surface), normalised
+//! to carry exactly `T(wo)`: directions with `wi.z < 0`.
 //!
 //! The dielectric layer's Fresnel is Schlick's with, per the extension texts,
 //! `F0 = min(((ior − 1)/(ior + 1))² · specularColor, 1) · specularFactor` and
@@ -26,7 +28,7 @@ use glam::{Vec2, Vec3};
 use std::f32::consts::{FRAC_1_PI, PI};
 use std::sync::OnceLock;
 
-use crate::asset::desc::MaterialDesc;
+use crate::asset::desc::{MaterialDesc, SMOOTH_TRANSMISSION_ROUGHNESS};
 use crate::sampling::{cosine_hemisphere_pdf, sample_cosine_hemisphere, sin_cos_turn};
 
 /// The F0 below which F90 fades to 0 in proportion (the specular layer's rim vanishes with
@@ -36,6 +38,9 @@ const F90_FADE: f32 = 1e-3;
 
 /// Roughness is clamped so the GGX lobe stays a density (no delta lobes, so MIS always applies).
 const MIN_ALPHA: f32 = 1e-3;
+/// Up to this GGX alpha, transmission goes straight through ([`SMOOTH_TRANSMISSION_ROUGHNESS`]
+/// squared); above it, it is a rough lobe.
+const SMOOTH_ALPHA: f32 = SMOOTH_TRANSMISSION_ROUGHNESS * SMOOTH_TRANSMISSION_ROUGHNESS;
 
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Material {
@@ -57,7 +62,7 @@ pub struct Material {
     pub transmission: f32,
     /// What depends on `wo` only, at the albedo table's columns of `√cos θo`: see
     /// [`Material::lobe_weights`].
-    lobes: [[f32; 2]; ALBEDO_COS_CELLS + 1],
+    lobes: [[f32; 3]; ALBEDO_COS_CELLS + 1],
 }
 
 /// A direction drawn from the BSDF with its value and solid-angle pdf.
@@ -141,7 +146,7 @@ impl Material {
             emission: p.emission.max(Vec3::ZERO),
             double_sided: p.double_sided,
             transmission: p.transmission.clamp(0.0, 1.0),
-            lobes: [[0.0; 2]; ALBEDO_COS_CELLS + 1],
+            lobes: [[0.0; 3]; ALBEDO_COS_CELLS + 1],
         }
     }
 
@@ -155,12 +160,13 @@ impl Material {
         self
     }
 
-    /// `[E(wo), P(specular lobes)]` at `cos θo` (see [`Self::lobe_weights`]).
-    fn lobe_at(&self, cos_o: f32) -> [f32; 2] {
-        // Without a specular lobe both are exactly zero: skip the table (building it takes
-        // about 0.1 s that Lambertian scenes need not wait for).
-        if !self.has_specular() {
-            return [0.0, 0.0];
+    /// `[E(wo), P(specular lobes), P(rough transmission)]` at `cos θo` (see
+    /// [`Self::lobe_weights`]).
+    fn lobe_at(&self, cos_o: f32) -> [f32; 3] {
+        // Without a specular lobe or a rough transmission all are exactly zero: skip the table
+        // (building it takes about 0.1 s that Lambertian scenes need not wait for).
+        if !self.has_specular() && !self.transmits_rough() {
+            return [0.0; 3];
         }
         let (a, b) = ggx_albedo(cos_o, self.alpha);
         let m = self.metallic;
@@ -170,9 +176,19 @@ impl Material {
         let e_max = ((self.f0.max_element() * a + self.f90 * b) * ALBEDO_ROUND_UP).min(1.0);
         let dielectric = mean(self.f0) * a + self.f90 * b;
         let specular = (1.0 - m) * dielectric + m * (mean(self.base_color) * a + b);
-        let diffuse = (1.0 - m) * (1.0 - e_max) * (1.0 - self.transmission) * mean(self.base_color);
-        let total = specular + diffuse;
-        [e_max, if total > 0.0 { specular / total } else { 0.0 }]
+        let base = (1.0 - m) * (1.0 - e_max) * mean(self.base_color);
+        let diffuse = base * (1.0 - self.transmission);
+        let transmitted = if self.transmits_rough() {
+            base * self.transmission
+        } else {
+            0.0
+        };
+        let total = specular + diffuse + transmitted;
+        if total > 0.0 {
+            [e_max, specular / total, transmitted / total]
+        } else {
+            [e_max, 0.0, 0.0]
+        }
     }
 
     /// A pure Lambertian reflector (no specular layer).
@@ -186,7 +202,7 @@ impl Material {
             emission: Vec3::ZERO,
             double_sided: true,
             transmission: 0.0,
-            lobes: [[0.0; 2]; ALBEDO_COS_CELLS + 1],
+            lobes: [[0.0; 3]; ALBEDO_COS_CELLS + 1],
         }
     }
 
@@ -202,10 +218,22 @@ impl Material {
             && self.f90 <= 0.0
     }
 
-    /// Whether light goes straight through it (thin-walled transmission): see
+    /// Whether light goes straight through it (smooth thin-walled transmission): see
     /// [`Self::straight_through`].
     pub fn transmits(&self) -> bool {
-        self.transmission > 0.0 && self.metallic < 1.0 && self.base_color.max_element() > 0.0
+        self.transmission > 0.0
+            && self.alpha <= SMOOTH_ALPHA
+            && self.metallic < 1.0
+            && self.base_color.max_element() > 0.0
+    }
+
+    /// Whether it transmits through a rough lobe (directions below the surface, `wi.z < 0`):
+    /// a real vertex, which light reaches from both sides.
+    pub fn transmits_rough(&self) -> bool {
+        self.transmission > 0.0
+            && self.alpha > SMOOTH_ALPHA
+            && self.metallic < 1.0
+            && self.base_color.max_element() > 0.0
     }
 
     /// The Lambertian base's albedo: what the transmission leaves of the base colour.
@@ -221,7 +249,7 @@ impl Material {
     /// it as a null interface, and the reflection is [`Self::eval_pdf`].
     #[inline(always)]
     pub fn straight_through(&self, cos_o: f32) -> Vec3 {
-        if self.transmission <= 0.0 {
+        if self.transmission <= 0.0 || self.alpha > SMOOTH_ALPHA {
             return Vec3::ZERO;
         }
         let e_spec = self.lobe_weights(cos_o.abs()).0;
@@ -234,15 +262,34 @@ impl Material {
         self.lobe_weights(cos_o).0
     }
 
-    /// `E(wo)` (see [`Self::specular_albedo`], at most 1) and the probability of sampling the
-    /// specular lobes, from the lobes' albedos: functions of `wo` only, shared by `eval_pdf`
-    /// and `sample_direction`, interpolated between the columns of `lobes`.
-    fn lobe_weights(&self, cos_o: f32) -> (f32, f32) {
+    /// `E(wo)` (see [`Self::specular_albedo`], at most 1) and the probabilities of sampling
+    /// the specular lobes and the rough transmission, from the lobes' albedos: functions of `wo`
+    /// only, shared by `eval_pdf` and `sample_direction`, interpolated between the columns of
+    /// `lobes`.
+    #[inline(always)]
+    fn lobe_weights(&self, cos_o: f32) -> (f32, f32, f32) {
         let x = cos_o.clamp(0.0, 1.0).sqrt() * ALBEDO_COS_CELLS as f32;
         let i = (x as usize).min(ALBEDO_COS_CELLS - 1);
         let t = x - i as f32;
-        let ([e0, p0], [e1, p1]) = (self.lobes[i], self.lobes[i + 1]);
-        (e0 + (e1 - e0) * t, p0 + (p1 - p0) * t)
+        let ([e0, p0, q0], [e1, p1, q1]) = (self.lobes[i], self.lobes[i + 1]);
+        (e0 + (e1 - e0) * t, p0 + (p1 - p0) * t, q0 + (q1 - q0) * t)
+    }
+
+    /// The rough transmission lobe at `wi` below the surface: the GGX reflection lobe about the
+    /// mirror of `wi` through the surface (`wr`), with F = 1, normalised by its albedo
+    /// `A + B` (F0 = F90 = 1) so that it carries exactly `T(wo)`; and the pdf of drawing it.
+    fn eval_pdf_transmitted(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
+        let (e_spec, _, p_trans) = self.lobe_weights(wo.z);
+        let wr = Vec3::new(wi.x, wi.y, -wi.z);
+        let h = (wo + wr).normalize();
+        let d = ggx_d(h, self.alpha);
+        let (lambda_o, lambda_r) = (ggx_lambda(wo, self.alpha), ggx_lambda(wr, self.alpha));
+        let (a, b) = ggx_albedo(wo.z, self.alpha);
+        let albedo = (a + b).max(1e-4);
+        let dg = d / ((1.0 + lambda_o + lambda_r) * 4.0 * wo.z * wr.z);
+        let weight = (1.0 - self.metallic) * (1.0 - e_spec) * self.transmission / albedo;
+        let pdf = p_trans * d / ((1.0 + lambda_o) * 4.0 * wo.z);
+        (dg * weight * self.base_color, pdf)
     }
 
     /// Whether there is any specular lobe (dielectric layer or metal).
@@ -254,19 +301,22 @@ impl Material {
     #[inline(always)]
     pub fn eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
         if wo.z <= 0.0 || wi.z <= 0.0 {
+            if wo.z > 0.0 && wi.z < 0.0 && self.transmits_rough() {
+                return self.eval_pdf_transmitted(wo, wi);
+            }
             return (Vec3::ZERO, 0.0);
         }
         let m = self.metallic;
-        if !self.has_specular() {
+        if !self.has_specular() && !self.transmits_rough() {
             return (
                 self.diffuse_color() * FRAC_1_PI,
                 cosine_hemisphere_pdf(wi.z),
             );
         }
         // The diffuse keeps what the specular layer does not reflect.
-        let (e_spec, p_spec) = self.lobe_weights(wo.z);
+        let (e_spec, p_spec, p_trans) = self.lobe_weights(wo.z);
         let diffuse = (1.0 - m) * (1.0 - e_spec) * self.diffuse_color() * FRAC_1_PI;
-        let pdf_diffuse = (1.0 - p_spec) * cosine_hemisphere_pdf(wi.z);
+        let pdf_diffuse = (1.0 - p_spec - p_trans) * cosine_hemisphere_pdf(wi.z);
         let h = (wo + wi).normalize();
         let d = ggx_d(h, self.alpha);
         let (lambda_o, lambda_i) = (ggx_lambda(wo, self.alpha), ggx_lambda(wi, self.alpha));
@@ -294,10 +344,22 @@ impl Material {
         if wo.z <= 0.0 {
             return None;
         }
-        if self.has_specular() && u_lobe < self.lobe_weights(wo.z).1 {
+        if !self.has_specular() && !self.transmits_rough() {
+            return Some(sample_cosine_hemisphere(u));
+        }
+        let (_, p_spec, p_trans) = self.lobe_weights(wo.z);
+        if u_lobe < p_spec + p_trans {
             let h = sample_ggx_vndf(wo, self.alpha, u);
             let wi = 2.0 * wo.dot(h) * h - wo;
-            (wi.z > 0.0).then_some(wi)
+            if wi.z <= 0.0 {
+                return None;
+            }
+            // The rough transmission: the reflection mirrored through the surface.
+            Some(if u_lobe < p_spec {
+                wi
+            } else {
+                Vec3::new(wi.x, wi.y, -wi.z)
+            })
         } else {
             Some(sample_cosine_hemisphere(u))
         }
@@ -500,6 +562,18 @@ mod tests {
                 ior: 0.0,
                 ..desc(0.0, 0.1, Vec3::ZERO)
             },
+            MaterialDesc {
+                roughness: 0.4,
+                transmission: 0.8,
+                base_color: Vec3::new(0.9, 0.7, 0.5),
+                ..MaterialDesc::clear_glass("frosted")
+            },
+            MaterialDesc {
+                roughness: 0.2,
+                transmission: 1.0,
+                ior: 1.0,
+                ..MaterialDesc::clear_glass("frosted without a layer")
+            },
         ]);
         for d in &configurations {
             let mat = Material::from_desc(d);
@@ -545,6 +619,46 @@ mod tests {
                 assert!(
                     total <= 1.0 + 2e-3 && total > 0.8,
                     "{d:?} cos {cos_o}: {total}"
+                );
+            }
+        }
+    }
+
+    /// Rough glass's pdf is a density over the whole sphere: reflection above, transmission
+    /// below, integrated by a midpoint rule in (cos θi, φ) over both hemispheres, is 1 less
+    /// what visible-normal sampling sends below the horizon (and, for the transmission, above
+    /// it); and the share below is the transmission's probability, less those misses.
+    #[test]
+    fn rough_glass_pdf_integrates_over_the_sphere() {
+        let n = 400;
+        for roughness in [0.3f32, 0.7] {
+            let glass = Material::from_desc(&MaterialDesc {
+                roughness,
+                ..MaterialDesc::clear_glass("frosted")
+            });
+            for cos_o in [1.0f32, 0.5, 0.1] {
+                let wo = Vec3::new((1.0 - cos_o * cos_o).sqrt(), 0.0, cos_o);
+                let (mut above, mut below) = (0.0f64, 0.0f64);
+                for i in 0..n {
+                    let cos_i = (i as f32 + 0.5) / n as f32;
+                    let sin_i = (1.0 - cos_i * cos_i).sqrt();
+                    for j in 0..n {
+                        let phi = 2.0 * PI * (j as f32 + 0.5) / n as f32;
+                        let wi = Vec3::new(sin_i * phi.cos(), sin_i * phi.sin(), cos_i);
+                        above += glass.eval_pdf(wo, wi).1 as f64;
+                        below += glass.eval_pdf(wo, wi * Vec3::new(1.0, 1.0, -1.0)).1 as f64;
+                    }
+                }
+                let cell = 2.0 * PI as f64 / (n * n) as f64;
+                let (above, below) = (above * cell, below * cell);
+                let (_, p_spec, p_trans) = glass.lobe_weights(cos_o);
+                assert!(
+                    above + below <= 1.0 + 2e-3 && above + below > 0.8,
+                    "r {roughness} cos {cos_o}: {above} + {below}"
+                );
+                assert!(
+                    below <= p_trans as f64 + 2e-3 && below > 0.8 * p_trans as f64,
+                    "r {roughness} cos {cos_o}: {below} vs {p_trans} ({p_spec})"
                 );
             }
         }
@@ -697,12 +811,14 @@ mod tests {
         }
     }
 
-    /// A white furnace for thin glass: white, fully transmitting glass reflects its sampled
-    /// albedo and passes `straight_through` straight on, which add up to 1 at every angle,
-    /// IOR and roughness, less only what the albedo table's round-up gives the reflection
-    /// beyond its true energy. Tolerance: 4 standard errors of the sampled albedo, plus
-    /// that round-up (0.3% of E) and the table's error. The negative case: a transmittance
-    /// that ignored Fresnel's rise towards grazing (`1 − F0`) would exceed 1 there.
+    /// A white furnace for thin glass: white, fully transmitting glass scatters its sampled
+    /// albedo (reflection, and for rough glass its transmission lobe) and passes
+    /// `straight_through` straight on (smooth glass), which add up to 1 at every angle, IOR and
+    /// roughness, less only what the albedo table's round-up gives the reflection beyond its
+    /// true energy. Tolerance: 4 standard errors of the sampled albedo, plus that round-up
+    /// (0.3% of E) and the table's error, on E and on the transmission lobe's normalisation
+    /// (relative to its albedo `A + B`). The negative case: a transmittance that ignored
+    /// Fresnel's rise towards grazing (`1 − F0`) would exceed 1 there.
     #[test]
     fn thin_glass_reflects_and_transmits_exactly_what_it_receives() {
         let mut rng = Rng::new(38, 1);
@@ -713,7 +829,7 @@ mod tests {
                     roughness,
                     ..MaterialDesc::clear_glass("glass")
                 });
-                assert!(glass.transmits() && !glass.is_black());
+                assert!(!glass.is_black());
                 for cos_o in [1.0f32, 0.7, 0.3, 0.08] {
                     let wo = Vec3::new((1.0 - cos_o * cos_o).sqrt(), 0.0, cos_o);
                     let (reflected, se) = albedo(&glass, wo, &mut rng, 20_000);
@@ -721,8 +837,13 @@ mod tests {
                     assert_eq!(transmitted.x, transmitted.z, "white glass stays white");
                     let total = reflected + transmitted.x as f64;
                     let e = glass.specular_albedo(cos_o) as f64;
-                    let tolerance =
-                        4.0 * se + e * (ALBEDO_ROUND_UP as f64 - 1.0) + ALBEDO_TABLE_TOLERANCE;
+                    let (a, b) = ggx_albedo(cos_o, glass.alpha);
+                    let tolerance = 4.0 * se
+                        + e * (ALBEDO_ROUND_UP as f64 - 1.0)
+                        + ALBEDO_TABLE_TOLERANCE * (1.0 + 1.0 / (a + b) as f64);
+                    // Smooth glass passes straight through; rough glass scatters through.
+                    assert_eq!(roughness == 0.0, glass.transmits());
+                    assert_eq!(roughness > 0.0, glass.transmits_rough());
                     assert!(
                         (total - 1.0).abs() <= tolerance,
                         "ior {ior} r {roughness} cos {cos_o}: {reflected} + {transmitted} = {total}"
@@ -737,12 +858,14 @@ mod tests {
                 }
             }
         }
-        // Transmission takes its share from the diffuse only: half-transmitting paint keeps
-        // half its Lambertian albedo, and passes the other half straight through.
+        // Transmission takes its share from the diffuse only: a smooth half-transmitting sheet
+        // without a specular layer keeps half its Lambertian albedo, and passes the other half
+        // straight through.
         let paint = Material::from_desc(&MaterialDesc {
             transmission: 0.5,
             specular_factor: 0.0,
-            ..MaterialDesc::diffuse("paint", Vec3::splat(0.8))
+            roughness: 0.0,
+            ..MaterialDesc::diffuse("sheet", Vec3::splat(0.8))
         });
         let (f, _) = paint.eval_pdf(Vec3::Z, Vec3::Z);
         assert!((f.x - 0.4 * FRAC_1_PI).abs() < 1e-6);
@@ -766,7 +889,7 @@ mod tests {
     fn albedo(mat: &Material, wo: Vec3, rng: &mut Rng, n: usize) -> (f64, f64) {
         let values: Vec<f64> = (0..n)
             .map(|_| match mat.sample(wo, rng.uniform(), rng.uniform2()) {
-                Some(s) => (s.f.x * s.wi.z / s.pdf) as f64,
+                Some(s) => (s.f.x * s.wi.z.abs() / s.pdf) as f64,
                 None => 0.0,
             })
             .collect();

@@ -210,3 +210,48 @@ fn only_scenes_with_glass_have_panes() {
         );
     }
 }
+
+/// Rough glass is a vertex that scatters to both sides: a single frosted sheet in a uniform sky
+/// of radiance 1, seen by the camera with one vertex (depth 1), reflects and transmits all of
+/// it, so every pixel is 1: light samples of the sky on both sides (their shadow rays leave
+/// from the side they go to), BSDF samples through the sheet, and their MIS weights must all
+/// be right. Tolerance: 4 standard errors of the pixel means, plus the albedo table's error on
+/// the transmission lobe's normalisation (1.5e-3 over an albedo above 0.5) and its round-up.
+/// The negative case: the reflection alone (what a renderer that ignored light from behind
+/// would give) is below 0.3, far outside it.
+#[test]
+fn a_frosted_sheet_in_a_uniform_sky_is_a_white_furnace() {
+    for roughness in [0.3f32, 0.6] {
+        let mut desc = SceneDesc {
+            name: "frosted".into(),
+            camera: camera(Vec3::new(0.0, 0.0, 2.0), Vec3::ZERO),
+            environment: Some(EnvironmentDesc::constant(Vec3::ONE)),
+            ..SceneDesc::default()
+        };
+        desc.materials.push(MaterialDesc {
+            roughness,
+            ..MaterialDesc::clear_glass("frosted")
+        });
+        let tilt = Vec3::new(40f32.to_radians().sin(), 0.0, 40f32.to_radians().cos());
+        desc.meshes
+            .push(flat("sheet", 0, &[square(Vec3::ZERO, tilt, 0.5)]));
+        let scene = Scene::from_desc(desc, "frosted").unwrap();
+        assert!(!scene.geometry.has_panes);
+        let settings = RenderSettings {
+            sampler: SamplerKind::Independent,
+            ..RenderSettings::default()
+        };
+        let integrator = Integrator::new(&scene, settings);
+        let (film, stats) = render(&integrator, 16, 16, 512);
+        assert_eq!(stats.nonfinite, 0);
+        let pixels: Vec<f64> = film.mean().iter().map(|c| c.x as f64).collect();
+        let (mean, se) = mean_and_se(&pixels);
+        let tolerance = 4.0 * se + 1.5e-3 / 0.5 + 0.003;
+        assert!(
+            (mean - 1.0).abs() <= tolerance,
+            "r {roughness}: {mean} ± {se}"
+        );
+        let e = scene.geometry.materials[0].specular_albedo(0.77) as f64;
+        assert!(1.0 - e > 10.0 * tolerance && e < 0.3, "{e}");
+    }
+}

@@ -99,9 +99,36 @@ struct Shading<'m> {
     /// toward the viewer), the interpolated normal and the shading normal: the BSDF's value
     /// is faded by Cycles' bump shadowing term ([`Shading::bump_shadowing`]).
     bump: Option<(Vec3, Vec3)>,
+    /// Where rays leave for directions below the surface (`wi · ng < 0`), for a material that
+    /// transmits through a rough lobe (light reaches it from both sides); `None` for one that
+    /// only reflects.
+    x_below: Option<Vec3>,
 }
 
 impl Shading<'_> {
+    /// The origin of a ray along `wi` (`wi_local` in the shading frame) if the surface
+    /// scatters that way: `x` above the surface, `x_below` beneath it; none where the shading
+    /// and the geometric normal disagree on the side (so no light leaks through either).
+    #[inline(always)]
+    fn origin(&self, wi: Vec3, wi_local: Vec3) -> Option<Vec3> {
+        let above = wi.dot(self.ng) > 0.0;
+        match (above, wi_local.z > 0.0) {
+            (true, true) => Some(self.x),
+            (false, false) => self.x_below,
+            _ => None,
+        }
+    }
+
+    /// The normal the light selection weighs lights by: `Vec3::ZERO` (no side) where light
+    /// arrives from both sides.
+    #[inline(always)]
+    fn pick_normal(&self) -> Vec3 {
+        match self.x_below {
+            Some(_) => Vec3::ZERO,
+            None => self.ng,
+        }
+    }
+
     /// The factor Cycles puts on the BSDF's value for the world direction `wi`
     /// (`surface::bump_shadowing_term`), 1 where the shading normal is the interpolated one.
     #[inline(always)]
@@ -452,19 +479,19 @@ impl<'a> Integrator<'a> {
                 break;
             };
             let wi = shading.frame.to_world(wi_local);
-            if wi.dot(shading.ng) <= 0.0 {
+            let Some(origin) = shading.origin(wi, wi_local) else {
                 break;
-            }
+            };
             // Before the last vertex, a direction that meets no light polygon gathers nothing:
             // skip evaluating the BSDF for it (most directions, in these scenes).
             let last = depth + 1 == self.settings.max_depth;
-            if last && self.polygon_lights && self.nearest_light_polygon(shading.x, wi).is_none() {
+            if last && self.polygon_lights && self.nearest_light_polygon(origin, wi).is_none() {
                 break;
             }
             let Some(bs) = material.sampled(shading.wo_local, wi_local) else {
                 break;
             };
-            beta *= bs.f * shading.bump_shadowing(wi) * bs.wi.z / bs.pdf;
+            beta *= bs.f * shading.bump_shadowing(wi) * bs.wi.z.abs() / bs.pdf;
             if !beta.is_finite() {
                 break;
             }
@@ -476,8 +503,8 @@ impl<'a> Integrator<'a> {
                 }
                 beta /= survive;
             }
-            previous = Some((shading.x, shading.ng, picked, bs.pdf));
-            o = shading.x;
+            previous = Some((shading.x, shading.pick_normal(), picked, bs.pdf));
+            o = origin;
             d = wi;
         }
         l
@@ -622,6 +649,9 @@ impl<'a> Integrator<'a> {
             wo_local,
             material,
             bump,
+            x_below: material
+                .transmits_rough()
+                .then(|| Self::offset(p, -ng, scale)),
         })
     }
 
@@ -638,7 +668,7 @@ impl<'a> Integrator<'a> {
         ctx: &mut LightContext,
     ) -> Option<Direct> {
         let ([u_pick, u_technique], u) = rng.uniforms_uniform2();
-        let (light, light_prob) = match self.lights.pick(u_pick, s.x, s.ng)? {
+        let (light, light_prob) = match self.lights.pick(u_pick, s.x, s.pick_normal())? {
             (PickedLight::Area(light), p) => (light, p),
             (PickedLight::Lamp(lamp), p) => {
                 // `ctx` is left as it was: the caller must not reuse it for MIS.
@@ -756,12 +786,12 @@ impl<'a> Integrator<'a> {
         let Some(sample) = self.scene.geometry.lamps[lamp].sample(s.x) else {
             return Vec3::ZERO;
         };
-        if lamp_prob <= 0.0 || sample.wi.dot(s.ng) <= 0.0 {
-            return Vec3::ZERO;
-        }
         let wi_local = s.frame.to_local(sample.wi);
+        let Some(origin) = s.origin(sample.wi, wi_local).filter(|_| lamp_prob > 0.0) else {
+            return Vec3::ZERO;
+        };
         let f = s.material.eval_pdf(s.wo_local, wi_local).0 * s.bump_shadowing(sample.wi);
-        if f == Vec3::ZERO || wi_local.z <= 0.0 {
+        if f == Vec3::ZERO || wi_local.z == 0.0 {
             return Vec3::ZERO;
         }
         stats.shadow_rays += 1;
@@ -771,11 +801,11 @@ impl<'a> Integrator<'a> {
         } else {
             f32::INFINITY
         };
-        let transmittance = self.visibility(tracer, s.x, sample.wi, tmax);
+        let transmittance = self.visibility(tracer, origin, sample.wi, tmax);
         if transmittance == Vec3::ZERO {
             return Vec3::ZERO;
         }
-        f * transmittance * sample.irradiance * wi_local.z / lamp_prob
+        f * transmittance * sample.irradiance * wi_local.z.abs() / lamp_prob
     }
 
     /// The environment's contribution through the windows: one sample of the sky mixture,
@@ -880,21 +910,24 @@ impl<'a> Integrator<'a> {
         tmax: f32,
         stats: &mut Stats,
     ) -> Vec3 {
-        if le == Vec3::ZERO || light_pdf.is_nan() || light_pdf <= 0.0 || wi.dot(s.ng) <= 0.0 {
+        if le == Vec3::ZERO || light_pdf.is_nan() || light_pdf <= 0.0 {
             return Vec3::ZERO;
         }
         let wi_local = s.frame.to_local(wi);
+        let Some(origin) = s.origin(wi, wi_local) else {
+            return Vec3::ZERO;
+        };
         let (f, bsdf_pdf) = s.material.eval_pdf(s.wo_local, wi_local);
         let f = f * s.bump_shadowing(wi);
         if f == Vec3::ZERO {
             return Vec3::ZERO;
         }
         stats.shadow_rays += 1;
-        let transmittance = self.visibility(tracer, s.x, wi, tmax);
+        let transmittance = self.visibility(tracer, origin, wi, tmax);
         if transmittance == Vec3::ZERO {
             return Vec3::ZERO;
         }
-        f * transmittance * le * wi_local.z * power_heuristic(light_pdf, bsdf_pdf) / light_pdf
+        f * transmittance * le * wi_local.z.abs() * power_heuristic(light_pdf, bsdf_pdf) / light_pdf
     }
 
     /// What a shadow ray lets through on the open segment `o + t·d`, `t` in `(0, tmax)`: 0

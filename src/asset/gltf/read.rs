@@ -864,14 +864,6 @@ pub(super) fn material_desc(
             file.display()
         ));
     }
-    if transmission > 0.0 && roughness > SMOOTH_TRANSMISSION_ROUGHNESS {
-        warnings.push(format!(
-            "{}: {at}: transmission with roughness {roughness}: rough transmission is not \
-             rendered yet; it goes straight through as if smooth (roughness at most \
-             {SMOOTH_TRANSMISSION_ROUGHNESS}); its reflection keeps the roughness",
-            file.display()
-        ));
-    }
     Ok(MaterialDesc {
         name: m
             .name
