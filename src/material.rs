@@ -62,7 +62,7 @@ pub struct Material {
     pub transmission: f32,
     /// What depends on `wo` only, at the albedo table's columns of `√cos θo`: see
     /// [`Material::lobe_weights`].
-    lobes: [[f32; 3]; ALBEDO_COS_CELLS + 1],
+    lobes: [[f32; 2]; ALBEDO_COS_CELLS + 1],
 }
 
 /// A direction drawn from the BSDF with its value and solid-angle pdf.
@@ -146,7 +146,7 @@ impl Material {
             emission: p.emission.max(Vec3::ZERO),
             double_sided: p.double_sided,
             transmission: p.transmission.clamp(0.0, 1.0),
-            lobes: [[0.0; 3]; ALBEDO_COS_CELLS + 1],
+            lobes: [[0.0; 2]; ALBEDO_COS_CELLS + 1],
         }
     }
 
@@ -160,13 +160,13 @@ impl Material {
         self
     }
 
-    /// `[E(wo), P(specular lobes), P(rough transmission)]` at `cos θo` (see
+    /// `[E(wo), P(GGX lobes: the specular ones and the rough transmission)]` at `cos θo` (see
     /// [`Self::lobe_weights`]).
-    fn lobe_at(&self, cos_o: f32) -> [f32; 3] {
-        // Without a specular lobe or a rough transmission all are exactly zero: skip the table
+    fn lobe_at(&self, cos_o: f32) -> [f32; 2] {
+        // Without a specular lobe or a rough transmission both are exactly zero: skip the table
         // (building it takes about 0.1 s that Lambertian scenes need not wait for).
         if !self.has_specular() && !self.transmits_rough() {
-            return [0.0; 3];
+            return [0.0; 2];
         }
         let (a, b) = ggx_albedo(cos_o, self.alpha);
         let m = self.metallic;
@@ -185,9 +185,9 @@ impl Material {
         };
         let total = specular + diffuse + transmitted;
         if total > 0.0 {
-            [e_max, specular / total, transmitted / total]
+            [e_max, (specular + transmitted) / total]
         } else {
-            [e_max, 0.0, 0.0]
+            [e_max, 0.0]
         }
     }
 
@@ -202,7 +202,7 @@ impl Material {
             emission: Vec3::ZERO,
             double_sided: true,
             transmission: 0.0,
-            lobes: [[0.0; 3]; ALBEDO_COS_CELLS + 1],
+            lobes: [[0.0; 2]; ALBEDO_COS_CELLS + 1],
         }
     }
 
@@ -266,13 +266,31 @@ impl Material {
     /// the specular lobes and the rough transmission, from the lobes' albedos: functions of `wo`
     /// only, shared by `eval_pdf` and `sample_direction`, interpolated between the columns of
     /// `lobes`.
+    ///
+    /// The GGX draws' split between reflection and rough transmission is any function of `wo`
+    /// (both `eval_pdf` and `sample_direction` take it from here): their shares of the albedo,
+    /// the specular one taken as `(1 − m)·E + m·mean(baseColor)`. Materials that do not
+    /// transmit keep the table's two columns (and their numbers) as they were.
     #[inline(always)]
     fn lobe_weights(&self, cos_o: f32) -> (f32, f32, f32) {
         let x = cos_o.clamp(0.0, 1.0).sqrt() * ALBEDO_COS_CELLS as f32;
         let i = (x as usize).min(ALBEDO_COS_CELLS - 1);
         let t = x - i as f32;
-        let ([e0, p0, q0], [e1, p1, q1]) = (self.lobes[i], self.lobes[i + 1]);
-        (e0 + (e1 - e0) * t, p0 + (p1 - p0) * t, q0 + (q1 - q0) * t)
+        let ([e0, p0], [e1, p1]) = (self.lobes[i], self.lobes[i + 1]);
+        let (e, p_ggx) = (e0 + (e1 - e0) * t, p0 + (p1 - p0) * t);
+        if !self.transmits_rough() {
+            return (e, p_ggx, 0.0);
+        }
+        let m = self.metallic;
+        let mean = (self.base_color.x + self.base_color.y + self.base_color.z) / 3.0;
+        let transmitted = (1.0 - m) * (1.0 - e) * self.transmission * mean;
+        let specular = (1.0 - m) * e + m * mean;
+        let q = if transmitted > 0.0 {
+            transmitted / (transmitted + specular)
+        } else {
+            0.0
+        };
+        (e, p_ggx * (1.0 - q), p_ggx * q)
     }
 
     /// The rough transmission lobe at `wi` below the surface: the GGX reflection lobe about the
@@ -592,6 +610,21 @@ mod tests {
         }
     }
 
+    /// `∫ f(wi) dωi` over the upper hemisphere by a midpoint rule on an `n` × `n` grid in
+    /// (cos θi, φ).
+    fn over_hemisphere(n: usize, mut f: impl FnMut(Vec3) -> f64) -> f64 {
+        let mut total = 0.0f64;
+        for i in 0..n {
+            let cos_i = (i as f32 + 0.5) / n as f32;
+            let sin_i = (1.0 - cos_i * cos_i).sqrt();
+            for j in 0..n {
+                let phi = 2.0 * PI * (j as f32 + 0.5) / n as f32;
+                total += f(Vec3::new(sin_i * phi.cos(), sin_i * phi.sin(), cos_i));
+            }
+        }
+        total * 2.0 * PI as f64 / (n * n) as f64
+    }
+
     /// The pdf is a density: its integral over the hemisphere, by a midpoint rule in
     /// (cos θi, φ), is 1 less what visible-normal sampling sends below the horizon.
     #[test]
@@ -605,17 +638,7 @@ mod tests {
             let mat = Material::from_desc(&d);
             for cos_o in [1.0f32, 0.5, 0.1] {
                 let wo = Vec3::new((1.0 - cos_o * cos_o).sqrt(), 0.0, cos_o);
-                let mut total = 0.0f64;
-                for i in 0..n {
-                    let cos_i = (i as f32 + 0.5) / n as f32;
-                    let sin_i = (1.0 - cos_i * cos_i).sqrt();
-                    for j in 0..n {
-                        let phi = 2.0 * PI * (j as f32 + 0.5) / n as f32;
-                        let wi = Vec3::new(sin_i * phi.cos(), sin_i * phi.sin(), cos_i);
-                        total += mat.eval_pdf(wo, wi).1 as f64;
-                    }
-                }
-                total *= 2.0 * PI as f64 / (n * n) as f64;
+                let total = over_hemisphere(n, |wi| mat.eval_pdf(wo, wi).1 as f64);
                 assert!(
                     total <= 1.0 + 2e-3 && total > 0.8,
                     "{d:?} cos {cos_o}: {total}"
@@ -638,19 +661,9 @@ mod tests {
             });
             for cos_o in [1.0f32, 0.5, 0.1] {
                 let wo = Vec3::new((1.0 - cos_o * cos_o).sqrt(), 0.0, cos_o);
-                let (mut above, mut below) = (0.0f64, 0.0f64);
-                for i in 0..n {
-                    let cos_i = (i as f32 + 0.5) / n as f32;
-                    let sin_i = (1.0 - cos_i * cos_i).sqrt();
-                    for j in 0..n {
-                        let phi = 2.0 * PI * (j as f32 + 0.5) / n as f32;
-                        let wi = Vec3::new(sin_i * phi.cos(), sin_i * phi.sin(), cos_i);
-                        above += glass.eval_pdf(wo, wi).1 as f64;
-                        below += glass.eval_pdf(wo, wi * Vec3::new(1.0, 1.0, -1.0)).1 as f64;
-                    }
-                }
-                let cell = 2.0 * PI as f64 / (n * n) as f64;
-                let (above, below) = (above * cell, below * cell);
+                let above = over_hemisphere(n, |wi| glass.eval_pdf(wo, wi).1 as f64);
+                let mirror = Vec3::new(1.0, 1.0, -1.0);
+                let below = over_hemisphere(n, |wi| glass.eval_pdf(wo, wi * mirror).1 as f64);
                 let (_, p_spec, p_trans) = glass.lobe_weights(cos_o);
                 assert!(
                     above + below <= 1.0 + 2e-3 && above + below > 0.8,

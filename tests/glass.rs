@@ -67,30 +67,7 @@ fn glazed_shade(ior: f32) -> Scene {
 /// facing down, a pane above it, under a uniform sky of radiance 1.
 fn glazed_skylight() -> Scene {
     let (lo, hi) = (Vec3::new(-1.0, 0.0, -1.0), Vec3::new(1.0, 1.5, 1.0));
-    let size = hi - lo;
-    let mut faces = plate(lo, (Vec3::X, size.x), (Vec3::Z, size.z), &[]);
-    faces.extend(plate(
-        Vec3::new(lo.x, hi.y, lo.z),
-        (Vec3::X, size.x),
-        (Vec3::Z, size.z),
-        &[(0.6, 1.4, 0.6, 1.4)],
-    ));
-    for (origin, u, v) in [
-        (lo, (Vec3::Y, size.y), (Vec3::Z, size.z)),
-        (
-            Vec3::new(hi.x, lo.y, lo.z),
-            (Vec3::Y, size.y),
-            (Vec3::Z, size.z),
-        ),
-        (lo, (Vec3::X, size.x), (Vec3::Y, size.y)),
-        (
-            Vec3::new(lo.x, lo.y, hi.z),
-            (Vec3::X, size.x),
-            (Vec3::Y, size.y),
-        ),
-    ] {
-        faces.extend(plate(origin, u, v, &[]));
-    }
+    let faces = box_faces(lo, hi, &[], &[(0.6, 1.4, 0.6, 1.4)]);
     let skylight = square(Vec3::new(0.0, 1.5, 0.0), -Vec3::Y, 0.4);
     let mut desc = SceneDesc {
         name: "skylight".into(),
@@ -254,4 +231,37 @@ fn a_frosted_sheet_in_a_uniform_sky_is_a_white_furnace() {
         let e = scene.geometry.materials[0].specular_albedo(0.77) as f64;
         assert!(1.0 - e > 10.0 * tolerance && e < 0.3, "{e}");
     }
+}
+
+/// With polygon lights and no sky, the last bounce finds the light it reaches by intersecting
+/// the polygons and one shadow ray (`Integrator::emission_along`): through panes too. A square
+/// light over a floor, a pane between them over half the floor, depth 2: passing equals
+/// stopping, per block.
+#[test]
+fn a_pane_under_a_polygon_light_passes_its_light_without_bias() {
+    let light = square(Vec3::new(0.0, 2.0, 0.0), -Vec3::Y, 0.6);
+    let mut desc = floor_and_light(0.6, light, 10.0);
+    let pane = [
+        Vec3::new(-0.2, 1.0, -1.5),
+        Vec3::new(1.5, 1.0, -1.5),
+        Vec3::new(1.5, 1.0, 1.5),
+        Vec3::new(-0.2, 1.0, 1.5),
+    ];
+    add_pane(&mut desc, &pane, Vec3::Y, 1.5);
+    desc.camera = camera(Vec3::new(0.0, 1.6, 2.2), Vec3::new(0.0, 0.0, 0.0));
+    let scene = Scene::from_desc(desc, "pane under a light").unwrap();
+    let film = |glass, spp, seed| {
+        let settings = RenderSettings {
+            strategy: Strategy::Light,
+            seed,
+            max_depth: 2,
+            sampler: SamplerKind::Independent,
+            glass,
+            ..RenderSettings::default()
+        };
+        render(&Integrator::new(&scene, settings), 48, 36, spp).0
+    };
+    let stopped = film(GlassShadows::Stop, 2048, 1);
+    let passing = film(GlassShadows::Pass, 256, 2);
+    assert_agrees("pane under a polygon light", &passing, &stopped, true);
 }

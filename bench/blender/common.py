@@ -101,6 +101,57 @@ def cycles_window_portal(x0, x1, z0, z1, y, name=None):
     return light
 
 
+def quad_facing(corners, inward):
+    """The quad's corners ordered so that its face normal points along `inward`."""
+    c = [np.array(p, dtype=float) for p in corners]
+    n = np.cross(c[1] - c[0], c[2] - c[0])
+    return corners if np.dot(n, inward) > 0 else corners[::-1]
+
+
+def mesh_object(name, quads, material):
+    verts, faces = [], []
+    for q in quads:
+        faces.append(tuple(range(len(verts), len(verts) + 4)))
+        verts.extend(q)
+    me = bpy.data.meshes.new(name)
+    me.from_pydata(verts, [], faces)
+    me.update()
+    obj = bpy.data.objects.new(name, me)
+    bpy.context.scene.collection.objects.link(obj)
+    obj.data.materials.append(material)
+    return obj
+
+
+def hdri_world(scene, hdri_path, strength, rotation, interpolation="Linear",
+               map_resolution=2048):
+    """The world lit by the equirectangular image `hdri_path` (Mapping's Z rotation in
+    degrees, Environment Texture's `interpolation`), and the scene extras portalview reads
+    for the same sky (the image is named relative to the exported file)."""
+    world = bpy.data.worlds.new("HDRI")
+    scene.world = world
+    world.use_nodes = True
+    world.cycles.sampling_method = "MANUAL"
+    world.cycles.sample_map_resolution = map_resolution
+    nodes, links = world.node_tree.nodes, world.node_tree.links
+    bg = nodes["Background"]
+    bg.inputs["Strength"].default_value = strength
+    coord = nodes.new("ShaderNodeTexCoord")
+    mapping = nodes.new("ShaderNodeMapping")
+    mapping.vector_type = "POINT"
+    mapping.inputs["Rotation"].default_value = (0.0, 0.0, math.radians(rotation))
+    env = nodes.new("ShaderNodeTexEnvironment")
+    env.image = bpy.data.images.load(hdri_path)
+    env.interpolation = interpolation
+    env.projection = "EQUIRECTANGULAR"
+    links.new(coord.outputs["Generated"], mapping.inputs["Vector"])
+    links.new(mapping.outputs["Vector"], env.inputs["Vector"])
+    links.new(env.outputs["Color"], bg.inputs["Color"])
+    scene["environment"] = os.path.basename(hdri_path)
+    scene["environment_strength"] = strength
+    scene["environment_rotation"] = rotation
+    scene["environment_interpolation"] = interpolation.lower()  # "linear" or "closest"
+
+
 def export_gltf(path, tangents=False, glb=False):
     """The scene as glTF (.gltf + .bin + textures, or one .glb if `glb`) with Blender's
     exporter: custom properties as extras, lights, cameras, Y up, modifiers applied, TANGENT if

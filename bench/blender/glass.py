@@ -57,9 +57,11 @@ import numpy as np
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from common import (  # noqa: E402
     alpha_mask, cycles_window_portal, emission_material, export_gltf, gltf_json,
-    lambert_material, load_exr, look_rotation, luminance, principled_to_diffuse,
-    render_cycles, run_portalview, script_argv, set_resolution, write_json, black_world,
+    lambert_material, load_exr, look_rotation, luminance, mesh_object, principled_to_diffuse,
+    quad_facing, render_cycles, run_portalview, script_argv, set_resolution, write_json,
+    black_world,
 )
+from common import hdri_world as common_hdri_world  # noqa: E402
 import json  # noqa: E402
 
 HDRI_DIR = bpy.utils.system_resource("DATAFILES", path="studiolights/world")
@@ -123,24 +125,6 @@ def args():
 # --- building ---------------------------------------------------------------------------------
 
 
-def quad_facing(corners, inward):
-    c = [np.array(p, dtype=float) for p in corners]
-    n = np.cross(c[1] - c[0], c[2] - c[0])
-    return corners if np.dot(n, inward) > 0 else corners[::-1]
-
-
-def mesh_object(name, quads, material):
-    verts, faces = [], []
-    for q in quads:
-        faces.append(tuple(range(len(verts), len(verts) + 4)))
-        verts.extend(q)
-    me = bpy.data.meshes.new(name)
-    me.from_pydata(verts, [], faces)
-    me.update()
-    obj = bpy.data.objects.new(name, me)
-    bpy.context.scene.collection.objects.link(obj)
-    obj.data.materials.append(material)
-    return obj
 
 
 def room(windows):
@@ -192,30 +176,7 @@ def camera(at, target, lens):
 
 def hdri_world(a, hdri_path):
     """The world as hdri_room.py builds it, and the scene extras portalview reads."""
-    scene = bpy.context.scene
-    world = bpy.data.worlds.new("HDRI")
-    scene.world = world
-    world.use_nodes = True
-    world.cycles.sampling_method = "MANUAL"
-    world.cycles.sample_map_resolution = 2048
-    nodes, links = world.node_tree.nodes, world.node_tree.links
-    bg = nodes["Background"]
-    bg.inputs["Strength"].default_value = a.strength
-    coord = nodes.new("ShaderNodeTexCoord")
-    mapping = nodes.new("ShaderNodeMapping")
-    mapping.vector_type = "POINT"
-    mapping.inputs["Rotation"].default_value = (0.0, 0.0, math.radians(a.rotation))
-    env = nodes.new("ShaderNodeTexEnvironment")
-    env.image = bpy.data.images.load(hdri_path)
-    env.interpolation = "Linear"
-    env.projection = "EQUIRECTANGULAR"
-    links.new(coord.outputs["Generated"], mapping.inputs["Vector"])
-    links.new(mapping.outputs["Vector"], env.inputs["Vector"])
-    links.new(env.outputs["Color"], bg.inputs["Color"])
-    scene["environment"] = os.path.basename(hdri_path)
-    scene["environment_strength"] = a.strength
-    scene["environment_rotation"] = a.rotation
-    scene["environment_interpolation"] = "linear"
+    common_hdri_world(bpy.context.scene, hdri_path, a.strength, a.rotation)
 
 
 def build_pane_room(a, hdri_path):

@@ -31,7 +31,6 @@ relative to Cycles' mean (`cy noise`: the RMS standard error of Cycles' two-seed
 
 import argparse
 import json
-import math
 import os
 import shutil
 import sys
@@ -42,7 +41,9 @@ import numpy as np
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from common import (  # noqa: E402
     alpha_mask, cycles_two_seeds, cycles_window_portal, export_gltf, lambert_material,
-    look_rotation, principled_to_diffuse, print_region_table, region_stats,
+    hdri_world, look_rotation, mesh_object, principled_to_diffuse, print_region_table,
+    quad_facing,
+    region_stats,
     run_portalview, script_argv, set_resolution, write_json,
 )
 
@@ -84,25 +85,6 @@ def args():
     return p.parse_args(script_argv())
 
 
-def quad_facing(corners, inward):
-    """The quad's corners ordered so that its face normal points along `inward`."""
-    c = [np.array(p, dtype=float) for p in corners]
-    n = np.cross(c[1] - c[0], c[2] - c[0])
-    return corners if np.dot(n, inward) > 0 else corners[::-1]
-
-
-def mesh_object(name, quads, material):
-    verts, faces = [], []
-    for q in quads:
-        faces.append(tuple(range(len(verts), len(verts) + 4)))
-        verts.extend(q)
-    me = bpy.data.meshes.new(name)
-    me.from_pydata(verts, [], faces)
-    me.update()
-    obj = bpy.data.objects.new(name, me)
-    bpy.context.scene.collection.objects.link(obj)
-    obj.data.materials.append(material)
-    return obj
 
 
 def room_quads():
@@ -152,36 +134,12 @@ def build_scene(a, interpolation, hdri_path):
     cam.data.lens = LENS
     scene.camera = cam
 
-    world = bpy.data.worlds.new("HDRI")
-    scene.world = world
-    world.use_nodes = True
     # Cycles' importance map of the world (its cells evaluated at their centres): with Closest and
     # cells not aligned to the image's pixels, a cell partly on the sun records a dim neighbour,
     # and the sun's light comes in rare huge samples (per-pixel noise 10x that of Linear at the
     # default rotation -136). A rotation by whole pixels (387 of 1024) and a 4096-wide map keep
     # the cells inside pixels.
-    world.cycles.sampling_method = "MANUAL"
-    world.cycles.sample_map_resolution = a.map_resolution
-    nodes, links = world.node_tree.nodes, world.node_tree.links
-    bg = nodes["Background"]
-    bg.inputs["Strength"].default_value = a.strength
-    coord = nodes.new("ShaderNodeTexCoord")
-    mapping = nodes.new("ShaderNodeMapping")
-    mapping.vector_type = "POINT"
-    mapping.inputs["Rotation"].default_value = (0.0, 0.0, math.radians(a.rotation))
-    env = nodes.new("ShaderNodeTexEnvironment")
-    env.image = bpy.data.images.load(hdri_path)
-    env.interpolation = interpolation
-    env.projection = "EQUIRECTANGULAR"
-    links.new(coord.outputs["Generated"], mapping.inputs["Vector"])
-    links.new(mapping.outputs["Vector"], env.inputs["Vector"])
-    links.new(env.outputs["Color"], bg.inputs["Color"])
-
-    # What portalview reads from the scene's extras.
-    scene["environment"] = os.path.basename(hdri_path)
-    scene["environment_strength"] = a.strength
-    scene["environment_rotation"] = a.rotation
-    scene["environment_interpolation"] = interpolation.lower()  # "linear" or "closest"
+    hdri_world(scene, hdri_path, a.strength, a.rotation, interpolation, a.map_resolution)
 
     set_resolution(scene, a.width, a.height)
 

@@ -385,11 +385,11 @@ fn variant_ratios(
         };
         let show = |v: Vec<f64>| match v.len() {
             0 => "–".to_owned(),
-            1 => format!("{:.2}×", v[0]),
+            1 => format!("{}×", ratio(v[0])),
             n => {
                 let mean = v.iter().sum::<f64>() / n as f64;
                 let var = v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1) as f64;
-                format!("{mean:.2}× ± {:.2}", (var / n as f64).sqrt())
+                format!("{}× ± {}", ratio(mean), ratio((var / n as f64).sqrt()))
             }
         };
         out.push_str(&format!(
@@ -400,6 +400,16 @@ fn variant_ratios(
         ));
     }
     out
+}
+
+/// A ratio with two decimals, or three significant digits where two decimals would hide it
+/// (stopping shadow rays at glass can cost a factor of thousands).
+fn ratio(v: f64) -> String {
+    if v != 0.0 && (v.abs() < 0.01 || v.abs() >= 1000.0) {
+        format!("{v:.2e}")
+    } else {
+        format!("{v:.2}")
+    }
 }
 
 /// One run of `--runs`, in a line: each strategy's spp and efficiency over light sampling's.

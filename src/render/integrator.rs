@@ -106,6 +106,13 @@ struct Shading<'m> {
 }
 
 impl Shading<'_> {
+    /// Whether the surface may scatter along `wi` at all: above it, or beneath it if it
+    /// transmits (a test before the shading frame's transform).
+    #[inline(always)]
+    fn may_scatter(&self, wi: Vec3) -> bool {
+        self.x_below.is_some() || wi.dot(self.ng) > 0.0
+    }
+
     /// The origin of a ray along `wi` (`wi_local` in the shading frame) if the surface
     /// scatters that way: `x` above the surface, `x_below` beneath it; none where the shading
     /// and the geometric normal disagree on the side (so no light leaks through either).
@@ -202,6 +209,14 @@ pub struct Integrator<'a> {
 
 /// The most panes one ray crosses; a ray that would cross more is taken as stopped.
 const MAX_PANE_CROSSINGS: u32 = 32;
+
+/// What a BSDF path's ray does at the thin glass it meets ([`Integrator::cross_panes`]).
+enum Crossing {
+    /// It met `hit` (a surface, glass it stops at, or nothing), having crossed panes or not.
+    Met { hit: Option<Hit>, crossed: bool },
+    /// Its weight went to zero, or it crossed too many panes: the path ends.
+    Absorbed,
+}
 
 /// Up to this many polygon lights, the last bounce intersects them directly.
 const DIRECT_LIGHT_TEST_LIMIT: usize = 16;
@@ -367,35 +382,19 @@ impl<'a> Integrator<'a> {
                 Some(hit) => hit,
                 None => tracer.closest_hit(o, d, 0.0, f32::INFINITY),
             };
-            // Thin glass on the way: crossed as a null interface (no vertex, no depth), with
-            // probability of its transmittance (always at the last vertex, where only
-            // emission beyond it counts), or met as a vertex: its reflection.
-            let mut crossings = 0;
-            while let Some(h) = hit.filter(|_| self.panes) {
-                let Some(transmittance) = self.pane_at(&h, d) else {
-                    break;
-                };
-                let p_pass = if depth == self.settings.max_depth {
-                    1.0
-                } else {
-                    transmittance.max_element().min(1.0)
-                };
-                if p_pass < 1.0 && rng.uniform() >= p_pass {
-                    beta /= 1.0 - p_pass;
-                    break;
+            if self.panes && hit.is_some() {
+                let last = depth == self.settings.max_depth;
+                match self.cross_panes(tracer, (o, d), hit, last, &mut beta, rng) {
+                    Crossing::Absorbed => break,
+                    Crossing::Met { hit: next, crossed } => {
+                        hit = next;
+                        // Light sampling through glass is off: what lies beyond takes the
+                        // full weight.
+                        if crossed && self.settings.glass == GlassShadows::Stop {
+                            previous = None;
+                        }
+                    }
                 }
-                beta *= transmittance / p_pass;
-                crossings += 1;
-                if crossings > MAX_PANE_CROSSINGS || beta == Vec3::ZERO {
-                    return l;
-                }
-                // Light sampling through glass is off: what lies beyond takes the full weight.
-                if self.settings.glass == GlassShadows::Stop {
-                    previous = None;
-                }
-                // The same ray from the same origin, so `t` stays the distance to the vertex.
-                let tmin = h.t + Self::epsilon(o + h.t * d, self.scale);
-                hit = tracer.closest_hit(o, d, tmin, f32::INFINITY);
             }
             let Some(hit) = hit else {
                 l += beta * self.environment_along(d, previous.map(|(x, ng, _, pdf)| (x, ng, pdf)));
@@ -786,8 +785,11 @@ impl<'a> Integrator<'a> {
         let Some(sample) = self.scene.geometry.lamps[lamp].sample(s.x) else {
             return Vec3::ZERO;
         };
+        if lamp_prob <= 0.0 || !s.may_scatter(sample.wi) {
+            return Vec3::ZERO;
+        }
         let wi_local = s.frame.to_local(sample.wi);
-        let Some(origin) = s.origin(sample.wi, wi_local).filter(|_| lamp_prob > 0.0) else {
+        let Some(origin) = s.origin(sample.wi, wi_local) else {
             return Vec3::ZERO;
         };
         let f = s.material.eval_pdf(s.wo_local, wi_local).0 * s.bump_shadowing(sample.wi);
@@ -910,7 +912,7 @@ impl<'a> Integrator<'a> {
         tmax: f32,
         stats: &mut Stats,
     ) -> Vec3 {
-        if le == Vec3::ZERO || light_pdf.is_nan() || light_pdf <= 0.0 {
+        if le == Vec3::ZERO || light_pdf.is_nan() || light_pdf <= 0.0 || !s.may_scatter(wi) {
             return Vec3::ZERO;
         }
         let wi_local = s.frame.to_local(wi);
@@ -928,6 +930,51 @@ impl<'a> Integrator<'a> {
             return Vec3::ZERO;
         }
         f * transmittance * le * wi_local.z.abs() * power_heuristic(light_pdf, bsdf_pdf) / light_pdf
+    }
+
+    /// A BSDF path's ray `o + t·d` whose closest hit is `hit`, in a scene with thin glass: it
+    /// crosses each pane it meets as a null interface (no vertex, no depth) with the
+    /// probability of the pane's transmittance, weighted by it over that probability, or stops
+    /// there (weighted by one over the rest) to make it a vertex of its reflection; at the
+    /// `last` vertex, where only emission beyond counts, it always crosses. Out of line: scenes
+    /// without glass never call it, and its traversals would crowd the path loop's code.
+    #[inline(never)]
+    fn cross_panes<T: Tracer>(
+        &self,
+        tracer: &T,
+        (o, d): (Vec3, Vec3),
+        mut hit: Option<Hit>,
+        last: bool,
+        beta: &mut Vec3,
+        rng: &mut Sampler,
+    ) -> Crossing {
+        let mut crossings = 0;
+        while let Some(h) = hit {
+            let Some(transmittance) = self.pane_at(&h, d) else {
+                break;
+            };
+            let p_pass = if last {
+                1.0
+            } else {
+                transmittance.max_element().min(1.0)
+            };
+            if p_pass < 1.0 && rng.uniform() >= p_pass {
+                *beta /= 1.0 - p_pass;
+                break;
+            }
+            *beta *= transmittance / p_pass;
+            crossings += 1;
+            if crossings > MAX_PANE_CROSSINGS || *beta == Vec3::ZERO {
+                return Crossing::Absorbed;
+            }
+            // The same ray from the same origin, so `t` stays the distance to the vertex.
+            let tmin = h.t + Self::epsilon(o + h.t * d, self.scale);
+            hit = tracer.closest_hit(o, d, tmin, f32::INFINITY);
+        }
+        Crossing::Met {
+            hit,
+            crossed: crossings > 0,
+        }
     }
 
     /// What a shadow ray lets through on the open segment `o + t·d`, `t` in `(0, tmax)`: 0
@@ -948,8 +995,9 @@ impl<'a> Integrator<'a> {
 
     /// The product of the straight-through transmittances of the thin glass on the open
     /// segment `o + t·d`, `t` in `(0, tmax)`, and how many panes it crosses: zero if
-    /// anything else stands there (or more than [`MAX_PANE_CROSSINGS`] panes).
-    #[inline(always)]
+    /// anything else stands there (or more than [`MAX_PANE_CROSSINGS`] panes). Out of line, as
+    /// [`Self::cross_panes`].
+    #[inline(never)]
     fn through_panes<T: Tracer>(&self, tracer: &T, o: Vec3, d: Vec3, tmax: f32) -> (Vec3, u32) {
         let mut transmittance = Vec3::ONE;
         let mut tmin = 0.0;

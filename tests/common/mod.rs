@@ -387,8 +387,20 @@ fn box_with_holes(desc: &mut SceneDesc, lo: Vec3, hi: Vec3, holes: &[(f32, f32, 
     desc.materials
         .push(MaterialDesc::diffuse("shade", Vec3::splat(0.3)));
     let material = desc.materials.len() - 1;
+    desc.meshes
+        .push(flat("shade", material, &box_faces(lo, hi, holes, &[])));
+}
+
+/// The six faces of the box `lo..hi` as rectangles, with `bottom` and `top` holes given as
+/// `(x0, x1, z0, z1)` offsets from `lo` (see [`plate`]).
+pub fn box_faces(
+    lo: Vec3,
+    hi: Vec3,
+    bottom: &[(f32, f32, f32, f32)],
+    top: &[(f32, f32, f32, f32)],
+) -> Vec<Vec<Vec3>> {
     let size = hi - lo;
-    let mut faces = plate(lo, (Vec3::X, size.x), (Vec3::Z, size.z), holes);
+    let mut faces = plate(lo, (Vec3::X, size.x), (Vec3::Z, size.z), bottom);
     for (origin, u, v) in [
         (lo, (Vec3::Y, size.y), (Vec3::Z, size.z)),
         (
@@ -402,15 +414,16 @@ fn box_with_holes(desc: &mut SceneDesc, lo: Vec3, hi: Vec3, holes: &[(f32, f32, 
             (Vec3::X, size.x),
             (Vec3::Y, size.y),
         ),
-        (
-            Vec3::new(lo.x, hi.y, lo.z),
-            (Vec3::X, size.x),
-            (Vec3::Z, size.z),
-        ),
     ] {
         faces.extend(plate(origin, u, v, &[]));
     }
-    desc.meshes.push(flat("shade", material, &faces));
+    faces.extend(plate(
+        Vec3::new(lo.x, hi.y, lo.z),
+        (Vec3::X, size.x),
+        (Vec3::Z, size.z),
+        top,
+    ));
+    faces
 }
 
 /// A floor and a bulb of 12 × 8 facets (86 vertices: more than the exact hull takes, so its
