@@ -8,6 +8,7 @@ mod common;
 
 use glam::Vec3;
 use portalview::asset::builtin;
+use portalview::asset::desc::{LampDesc, LampKind};
 use portalview::light::estimator::{LightSampler, PickedLight};
 use portalview::light::tree::{LightBounds, LightTree, TreeLight, area_light_bounds};
 use portalview::light::{LightSet, Selection, Strategy};
@@ -42,6 +43,56 @@ fn emitters(scene: &Scene) -> Vec<PickedLight> {
         .chain((0..scene.lamps().len()).map(PickedLight::Lamp))
         .chain(scene.environment().map(|_| PickedLight::Environment))
         .collect()
+}
+
+/// Thousands of lamps on one line (and some at one point) tie every cost of the tree's split:
+/// without a bound on its depth, each level peeled one bucket off and leaves lay past the 64
+/// bits of their paths (a debug build panicked on the shift, a release build followed the
+/// wrong path, so `probability` disagreed with the pick). The tree stays within 63 levels,
+/// its probabilities sum to 1 and each pick reports exactly the probability evaluated for it.
+#[test]
+fn thousands_of_collinear_lamps_keep_the_tree_within_its_paths() {
+    let mut desc = common::floor_and_light(0.5, common::square(Vec3::Y * 3.0, -Vec3::Y, 0.1), 1.0);
+    let lamp = |i: usize, position: Vec3| LampDesc {
+        name: format!("lamp {i}"),
+        kind: LampKind::Point,
+        color: Vec3::ONE,
+        intensity: 10.0,
+        range: None,
+        position,
+        direction: Vec3::NEG_Y,
+    };
+    desc.lamps = (0..2000)
+        .map(|i| lamp(i, Vec3::new(-1.0 + 0.001 * i as f32, 2.0, 0.0)))
+        .chain((2000..2100).map(|i| lamp(i, Vec3::new(0.5, 2.5, 0.5))))
+        .collect();
+    let scene = Scene::from_desc(desc, "collinear lamps").unwrap();
+    let sampler = LightSampler::with_selection(&scene, Strategy::Light, None, Selection::Tree);
+    let (leaves, depth) = sampler.tree().shape();
+    assert!(
+        leaves >= 2100 && depth <= 63,
+        "{leaves} leaves, {depth} levels"
+    );
+    let all = emitters(&scene);
+    let mut rng = Rng::new(40, 1);
+    for _ in 0..8 {
+        let x = Vec3::new(4.0 * rng.uniform() - 2.0, 0.0, 4.0 * rng.uniform() - 2.0);
+        let p: Vec<f32> = all
+            .iter()
+            .map(|&l| sampler.probability(l, x, Vec3::Y))
+            .collect();
+        let total: f32 = p.iter().sum();
+        assert!(
+            (total - 1.0).abs() < 1e-4,
+            "probabilities sum to {total} at {x}"
+        );
+        for k in 0..200 {
+            let u = (k as f32 + rng.uniform()) / 200.0;
+            let (light, q) = sampler.pick(u, x, Vec3::Y).unwrap();
+            let i = all.iter().position(|&l| l == light).unwrap();
+            assert_eq!(q, p[i], "the pick's probability of {light:?} at {x}");
+        }
+    }
 }
 
 /// At random points and normals in every scene, for every strategy: the probabilities of

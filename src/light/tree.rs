@@ -591,9 +591,13 @@ impl LightTree {
             });
             return index;
         }
-        let mid = match saoh_split(entries, order, &bounds) {
+        // A leaf's path is the bits of `trail`: where the tree would grow deeper than they
+        // hold (collinear lamps tie every SAOH cost and peel off one bucket a level), the rest
+        // is split in halves, which keeps every leaf within `MAX_DEPTH` levels.
+        let balanced = depth + order.len().next_power_of_two().trailing_zeros() >= MAX_DEPTH;
+        let mid = match saoh_split(entries, order, &bounds).filter(|_| !balanced) {
             Some(mid) => mid,
-            // Every centre the same: halves by index.
+            // Every centre the same, or too deep: halves by index.
             None => {
                 order.sort_unstable();
                 order.len() / 2
@@ -853,6 +857,9 @@ impl LightTree {
         )
     }
 }
+
+/// The deepest a leaf may lie: its path from the root is `trail`'s bits `0..depth`.
+const MAX_DEPTH: u32 = u64::BITS - 1;
 
 /// Buckets per axis of [`saoh_split`] (pbrt-v4's).
 const SAOH_BUCKETS: usize = 12;
