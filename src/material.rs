@@ -221,19 +221,19 @@ impl Material {
     /// Whether light goes straight through it (smooth thin-walled transmission): see
     /// [`Self::straight_through`].
     pub fn transmits(&self) -> bool {
-        self.transmission > 0.0
-            && self.alpha <= SMOOTH_ALPHA
-            && self.metallic < 1.0
-            && self.base_color.max_element() > 0.0
+        self.has_transmission() && self.alpha <= SMOOTH_ALPHA
     }
 
     /// Whether it transmits through a rough lobe (directions below the surface, `wi.z < 0`):
     /// a real vertex, which light reaches from both sides.
     pub fn transmits_rough(&self) -> bool {
-        self.transmission > 0.0
-            && self.alpha > SMOOTH_ALPHA
-            && self.metallic < 1.0
-            && self.base_color.max_element() > 0.0
+        self.has_transmission() && self.alpha > SMOOTH_ALPHA
+    }
+
+    /// Whether any light passes the surface: a transmitting dielectric share with a colour.
+    #[inline(always)]
+    fn has_transmission(&self) -> bool {
+        self.transmission > 0.0 && self.metallic < 1.0 && self.base_color.max_element() > 0.0
     }
 
     /// The Lambertian base's albedo: what the transmission leaves of the base colour.
@@ -249,7 +249,7 @@ impl Material {
     /// it as a null interface, and the reflection is [`Self::eval_pdf`].
     #[inline(always)]
     pub fn straight_through(&self, cos_o: f32) -> Vec3 {
-        if self.transmission <= 0.0 || self.alpha > SMOOTH_ALPHA {
+        if !self.transmits() {
             return Vec3::ZERO;
         }
         let e_spec = self.lobe_weights(cos_o.abs()).0;

@@ -542,9 +542,10 @@ impl<'a> Integrator<'a> {
         let tmax = t * (1.0 - 1e-4) - Self::shadow_gap(self.scale);
         let (transmittance, crossings) = if self.panes {
             self.through_panes(tracer, o, d, tmax)
+        } else if tracer.occluded(o, d, 0.0, tmax) {
+            (Vec3::ZERO, 0)
         } else {
-            let open = !tracer.occluded(o, d, 0.0, tmax);
-            (Vec3::splat(open as u8 as f32), 0)
+            (Vec3::ONE, 0)
         };
         if transmittance == Vec3::ZERO {
             return Vec3::ZERO;
@@ -1023,11 +1024,11 @@ impl<'a> Integrator<'a> {
     #[inline(always)]
     fn pane_at(&self, hit: &Hit, d: Vec3) -> Option<Vec3> {
         let geometry = &*self.scene.geometry;
-        let tri = &geometry.triangles[hit.triangle as usize];
-        let material = &geometry.materials[tri.material as usize];
-        if tri.light != NO_LIGHT || !material.transmits() {
+        if !geometry.is_pane(hit.triangle) {
             return None;
         }
+        let tri = &geometry.triangles[hit.triangle as usize];
+        let material = &geometry.materials[tri.material as usize];
         let (_, ns) = tri.point(hit.bary);
         let n = if ns == Vec3::ZERO {
             tri.geometric_normal()

@@ -778,8 +778,9 @@ fn panes() -> SceneDesc {
     desc
 }
 
-/// A pane over every window portal of `desc`, outside the room (behind the portal's front).
-fn add_panes(desc: &mut SceneDesc) {
+/// A pane over every window portal of `desc`, outside the room (behind the portal's front);
+/// returns the glass's material.
+fn add_panes(desc: &mut SceneDesc) -> usize {
     let glass = desc.materials.len();
     desc.materials.push(MaterialDesc::clear_glass("glass"));
     let windows: Vec<(String, Vec<Vec3>)> = desc
@@ -808,6 +809,7 @@ fn add_panes(desc: &mut SceneDesc) {
         desc.meshes
             .push(flat_mesh(&format!("{name}_pane"), glass, &faces));
     }
+    glass
 }
 
 /// A pendant lamp whose bulb hangs inside a clear glass globe (two concentric spheres of thin
@@ -815,14 +817,8 @@ fn add_panes(desc: &mut SceneDesc) {
 /// has no portal: its light is sampled through the globe.
 fn pendant() -> SceneDesc {
     let mut desc = room_with_windows("pendant", false);
-    add_panes(&mut desc);
+    let glass = add_panes(&mut desc);
     let mut b = Builder { desc };
-    let glass = b
-        .desc
-        .materials
-        .iter()
-        .position(|m| m.name == "glass")
-        .unwrap_or_default();
     let cord = b.material(MaterialDesc::diffuse("cord", Vec3::splat(0.05)));
     let bulb = b.material(MaterialDesc::emitter(
         "bulb",
