@@ -316,24 +316,31 @@ def depth_limit(depth):
             continue
         if src.type != "BSDF_DIFFUSE":
             continue
-        lp = nodes.new("ShaderNodeLightPath")
-        add = nodes.new("ShaderNodeMath")
-        add.operation = "ADD"
-        gt = nodes.new("ShaderNodeMath")
-        gt.name = "DepthGreater"
-        gt.operation = "GREATER_THAN"
-        gt.inputs[1].default_value = depth - 0.5
-        black = nodes.new("ShaderNodeBsdfDiffuse")
-        black.inputs["Color"].default_value = (0.0, 0.0, 0.0, 1.0)
-        mix = nodes.new("ShaderNodeMixShader")
-        mix.name = "DepthMix"
-        links.new(lp.outputs["Diffuse Depth"], add.inputs[0])
-        links.new(lp.outputs["Glossy Depth"], add.inputs[1])
-        links.new(add.outputs["Value"], gt.inputs[0])
-        links.new(gt.outputs["Value"], mix.inputs["Fac"])
-        links.new(src.outputs["BSDF"], mix.inputs[1])
-        links.new(black.outputs["BSDF"], mix.inputs[2])
+        mix = black_past_depth(nodes, links, src.outputs["BSDF"], depth)
         links.new(mix.outputs["Shader"], out.inputs["Surface"])
+
+
+def black_past_depth(nodes, links, shader, depth):
+    """Mix(`shader`, black Diffuse) with factor [Diffuse Depth + Glossy Depth > depth - 1]
+    (nodes "DepthGreater" and "DepthMix", so depth_limit can change the threshold later)."""
+    lp = nodes.new("ShaderNodeLightPath")
+    add = nodes.new("ShaderNodeMath")
+    add.operation = "ADD"
+    gt = nodes.new("ShaderNodeMath")
+    gt.name = "DepthGreater"
+    gt.operation = "GREATER_THAN"
+    gt.inputs[1].default_value = depth - 0.5
+    black = nodes.new("ShaderNodeBsdfDiffuse")
+    black.inputs["Color"].default_value = (0.0, 0.0, 0.0, 1.0)
+    mix = nodes.new("ShaderNodeMixShader")
+    mix.name = "DepthMix"
+    links.new(lp.outputs["Diffuse Depth"], add.inputs[0])
+    links.new(lp.outputs["Glossy Depth"], add.inputs[1])
+    links.new(add.outputs["Value"], gt.inputs[0])
+    links.new(gt.outputs["Value"], mix.inputs["Fac"])
+    links.new(shader, mix.inputs[1])
+    links.new(black.outputs["BSDF"], mix.inputs[2])
+    return mix
 
 
 def two_seeds(prefix, spp, depth, force, threads, transparent=8):
@@ -546,23 +553,7 @@ def gltf_thin_glass():
     gl.distribution = "SHARP"
     gl.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
     mix = nodes.new("ShaderNodeMixShader")
-    lp = nodes.new("ShaderNodeLightPath")
-    add = nodes.new("ShaderNodeMath")
-    add.operation = "ADD"
-    gt = nodes.new("ShaderNodeMath")
-    gt.name = "DepthGreater"
-    gt.operation = "GREATER_THAN"
-    gt.inputs[1].default_value = 0.5
-    black = nodes.new("ShaderNodeBsdfDiffuse")
-    black.inputs["Color"].default_value = (0.0, 0.0, 0.0, 1.0)
-    kill = nodes.new("ShaderNodeMixShader")
-    kill.name = "DepthMix"
-    links.new(lp.outputs["Diffuse Depth"], add.inputs[0])
-    links.new(lp.outputs["Glossy Depth"], add.inputs[1])
-    links.new(add.outputs["Value"], gt.inputs[0])
-    links.new(gt.outputs["Value"], kill.inputs["Fac"])
-    links.new(gl.outputs["BSDF"], kill.inputs[1])
-    links.new(black.outputs["BSDF"], kill.inputs[2])
+    kill = black_past_depth(nodes, links, gl.outputs["BSDF"], 1)
     links.new(lw.outputs["Facing"], pw.inputs[0])
     links.new(pw.outputs["Value"], ma.inputs[0])
     links.new(ma.outputs["Value"], mix.inputs["Fac"])
