@@ -299,10 +299,11 @@ def cycles_variant(a, out, variant):
 
 
 
-def depth_limit(depth):
+def depth_limit(depth, glossy=True):
     """Each Diffuse BSDF output (after principled_to_diffuse) becomes Mix(it, black Diffuse)
     with factor [Diffuse Depth + Glossy Depth > depth - 1]: portalview's --max-depth without
-    counting crossings of glass."""
+    counting crossings of glass. glossy False: [Diffuse Depth > depth - 1], sharp glass
+    reflections not counted either (thick_glass.py)."""
     for m in bpy.data.materials:
         if not m.use_nodes:
             continue
@@ -316,13 +317,14 @@ def depth_limit(depth):
             continue
         if src.type != "BSDF_DIFFUSE":
             continue
-        mix = black_past_depth(nodes, links, src.outputs["BSDF"], depth)
+        mix = black_past_depth(nodes, links, src.outputs["BSDF"], depth, glossy)
         links.new(mix.outputs["Shader"], out.inputs["Surface"])
 
 
-def black_past_depth(nodes, links, shader, depth):
+def black_past_depth(nodes, links, shader, depth, glossy=True):
     """Mix(`shader`, black Diffuse) with factor [Diffuse Depth + Glossy Depth > depth - 1]
-    (nodes "DepthGreater" and "DepthMix", so depth_limit can change the threshold later)."""
+    (nodes "DepthGreater" and "DepthMix", so depth_limit can change the threshold later);
+    glossy False: [Diffuse Depth > depth - 1]."""
     lp = nodes.new("ShaderNodeLightPath")
     add = nodes.new("ShaderNodeMath")
     add.operation = "ADD"
@@ -335,7 +337,10 @@ def black_past_depth(nodes, links, shader, depth):
     mix = nodes.new("ShaderNodeMixShader")
     mix.name = "DepthMix"
     links.new(lp.outputs["Diffuse Depth"], add.inputs[0])
-    links.new(lp.outputs["Glossy Depth"], add.inputs[1])
+    if glossy:
+        links.new(lp.outputs["Glossy Depth"], add.inputs[1])
+    else:
+        add.inputs[1].default_value = 0.0
     links.new(add.outputs["Value"], gt.inputs[0])
     links.new(gt.outputs["Value"], mix.inputs["Fac"])
     links.new(shader, mix.inputs[1])
