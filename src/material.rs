@@ -11,6 +11,11 @@
 //! straight-through direction (the reflection lobe mirrored through the surface), normalised
 //! to carry exactly `T(wo)`: directions with `wi.z < 0`.
 //!
+//! With `KHR_materials_volume` the transmitted share is instead the boundary of a refracting
+//! volume ([`Material::dielectric`]): exact Fresnel, total internal reflection, `η²` across
+//! it; the integrator picks between it and the rest ([`Material::opaque_part`]) per vertex
+//! and attenuates rays inside by Beer–Lambert ([`Volume::sigma`]).
+//!
 //! The dielectric layer's Fresnel is Schlick's with, per the extension texts,
 //! `F0 = min(((ior − 1)/(ior + 1))² · specularColor, 1) · specularFactor` and
 //! `F90 = specularFactor`, evaluated at the microfacet (`wo·h`) as the glTF Sample Viewer does.
@@ -60,9 +65,24 @@ pub struct Material {
     pub double_sided: bool,
     /// The share of the dielectric base transmitted straight through (thin-walled), in [0, 1].
     pub transmission: f32,
+    /// `KHR_materials_volume`: the transmitted share is the boundary of a refracting volume,
+    /// resolved at each vertex into [`Self::dielectric`] or [`Self::opaque_part`].
+    pub volume: Option<Volume>,
+    /// A dielectric boundary's relative IOR, `n` beyond over `n` on the side of `wo` (0 for
+    /// every other material): see [`Self::dielectric`].
+    eta: f32,
     /// What depends on `wo` only, at the albedo table's columns of `√cos θo`: see
     /// [`Material::lobe_weights`].
     lobes: [[f32; 2]; ALBEDO_COS_CELLS + 1],
+}
+
+/// What fills a closed mesh of a refracting material (`KHR_materials_volume`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Volume {
+    /// The glass's index of refraction (the outside's is 1).
+    pub ior: f32,
+    /// Beer–Lambert's absorption coefficient per metre.
+    pub sigma: Vec3,
 }
 
 /// A direction drawn from the BSDF with its value and solid-angle pdf.
@@ -92,6 +112,7 @@ pub struct MaterialParams {
     pub ior: f32,
     /// `transmissionFactor` (times its texture's R).
     pub transmission: f32,
+    pub volume: Option<Volume>,
     pub emission: Vec3,
     pub double_sided: bool,
 }
@@ -106,6 +127,10 @@ impl MaterialParams {
             specular_color: desc.specular_color,
             ior: desc.ior,
             transmission: desc.transmission,
+            volume: desc.volume.map(|v| Volume {
+                ior: desc.ior,
+                sigma: v.sigma(),
+            }),
             emission: desc.radiance(),
             double_sided: desc.double_sided,
         }
@@ -146,6 +171,8 @@ impl Material {
             emission: p.emission.max(Vec3::ZERO),
             double_sided: p.double_sided,
             transmission: p.transmission.clamp(0.0, 1.0),
+            volume: p.volume,
+            eta: 0.0,
             lobes: [[0.0; 2]; ALBEDO_COS_CELLS + 1],
         }
     }
@@ -202,6 +229,8 @@ impl Material {
             emission: Vec3::ZERO,
             double_sided: true,
             transmission: 0.0,
+            volume: None,
+            eta: 0.0,
             lobes: [[0.0; 2]; ALBEDO_COS_CELLS + 1],
         }
     }
@@ -216,6 +245,7 @@ impl Material {
             && self.diffuse_color().max_element() <= 0.0
             && self.f0.max_element() <= 0.0
             && self.f90 <= 0.0
+            && (self.dielectric_share() <= 0.0 || self.base_color.max_element() <= 0.0)
     }
 
     /// Whether light goes straight through it (smooth thin-walled transmission): see
@@ -230,10 +260,143 @@ impl Material {
         self.has_transmission() && self.alpha > SMOOTH_ALPHA
     }
 
-    /// Whether any light passes the surface: a transmitting dielectric share with a colour.
+    /// Whether any light passes the surface thin-walled: a transmitting dielectric share with a
+    /// colour, and no volume behind it.
     #[inline(always)]
     fn has_transmission(&self) -> bool {
-        self.transmission > 0.0 && self.metallic < 1.0 && self.base_color.max_element() > 0.0
+        self.transmission > 0.0
+            && self.metallic < 1.0
+            && self.base_color.max_element() > 0.0
+            && self.volume.is_none()
+    }
+
+    /// The share of a volume's surface that is the boundary of its dielectric,
+    /// `(1 − metallic)·transmission` (0 without a volume): a vertex is [`Self::dielectric`]
+    /// with this probability and [`Self::opaque_part`] otherwise, each then with weight 1
+    /// (one sample of the mixture `share·dielectric + (1 − share)·rest`).
+    pub fn dielectric_share(&self) -> f32 {
+        match self.volume {
+            Some(_) => (1.0 - self.metallic) * self.transmission,
+            None => 0.0,
+        }
+    }
+
+    /// The boundary of the volume's dielectric seen from the side of `wo`, `inside` the mesh
+    /// or out: a GGX dielectric (Walter et al. 2007, as pbrt-v4's `DielectricBxDF`) of
+    /// relative IOR `ior` entering and `1/ior` leaving, with the exact Fresnel, transmission
+    /// tinted by the base colour and divided by `η²` (radiance is compressed entering a
+    /// denser medium and expanded leaving it); smooth ([`Self::is_smooth_dielectric`]) it is a
+    /// delta interface ([`Self::sample_smooth_dielectric`]).
+    pub fn dielectric(&self, inside: bool) -> Material {
+        let ior = self.volume.map_or(1.0, |v| v.ior).max(1.0);
+        Material {
+            base_color: self.base_color,
+            metallic: 0.0,
+            alpha: self.alpha,
+            f0: Vec3::splat(f0_from_ior(ior)),
+            f90: 1.0,
+            emission: Vec3::ZERO,
+            double_sided: true,
+            transmission: 0.0,
+            volume: None,
+            eta: if inside { 1.0 / ior } else { ior },
+            lobes: [[0.0; 2]; ALBEDO_COS_CELLS + 1],
+        }
+    }
+
+    /// What a volume's surface is besides its dielectric (see [`Self::dielectric_share`]):
+    /// the material without transmission, its metal renormalised to the rest,
+    /// `m / (1 − share)`; its `wo`-only terms at `cos θo = cos_o` (as [`Self::at_incidence`]).
+    pub fn opaque_part(&self, cos_o: f32) -> Material {
+        let rest = 1.0 - self.dielectric_share();
+        let mut m = Material {
+            transmission: 0.0,
+            volume: None,
+            metallic: if rest > 0.0 {
+                (self.metallic / rest).min(1.0)
+            } else {
+                0.0
+            },
+            ..*self
+        };
+        let lobe = m.lobe_at(cos_o);
+        m.lobes = [lobe; ALBEDO_COS_CELLS + 1];
+        m
+    }
+
+    /// Whether this is a dielectric boundary smooth enough to be a delta interface.
+    pub fn is_smooth_dielectric(&self) -> bool {
+        self.eta > 0.0 && self.alpha <= SMOOTH_ALPHA
+    }
+
+    /// A smooth dielectric boundary's event for `wo` (`wo.z > 0`): reflection with the exact
+    /// Fresnel's probability `F` (certainly past the critical angle), else refraction; the
+    /// direction and its weight `f·|cos θi| / P`: 1 for the reflection, `baseColor / η²` for
+    /// the refraction.
+    pub fn sample_smooth_dielectric(&self, wo: Vec3, u: f32) -> (Vec3, Vec3) {
+        let f = fresnel_dielectric(wo.z, self.eta);
+        if u >= f
+            && let Some(wt) = refract(wo, Vec3::Z, self.eta)
+        {
+            return (wt, self.base_color / (self.eta * self.eta));
+        }
+        (Vec3::new(-wo.x, -wo.y, wo.z), Vec3::ONE)
+    }
+
+    /// A rough dielectric boundary's `f(wo, wi)` and the pdf of drawing `wi` (pbrt-v4's
+    /// `DielectricBxDF::f` and `PDF`, radiance transport): the generalised half vector
+    /// `ωm ∝ η·wi + wo` for transmission, the lobes drawn in proportion to `F` and `1 − F`.
+    fn eval_pdf_dielectric(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
+        if wo.z <= 0.0 || wi.z == 0.0 {
+            return (Vec3::ZERO, 0.0);
+        }
+        let reflect = wi.z > 0.0;
+        let etap = if reflect { 1.0 } else { self.eta };
+        let wm = wi * etap + wo;
+        if wm.length_squared() <= 1e-12 {
+            return (Vec3::ZERO, 0.0);
+        }
+        let wm = wm.normalize();
+        let wm = if wm.z < 0.0 { -wm } else { wm };
+        let (cos_om, cos_im) = (wo.dot(wm), wi.dot(wm));
+        // Microfacets that face away from either direction take no part.
+        if cos_om <= 0.0 || cos_im * wi.z <= 0.0 {
+            return (Vec3::ZERO, 0.0);
+        }
+        let f = fresnel_dielectric(cos_om, self.eta);
+        let d = ggx_d(wm, self.alpha);
+        let (lambda_o, lambda_i) = (ggx_lambda(wo, self.alpha), ggx_lambda(wi, self.alpha));
+        let g2 = 1.0 / (1.0 + lambda_o + lambda_i);
+        // The visible normals' density: G1(wo)·D(ωm)·(wo·ωm) / cos θo.
+        let pdf_wm = d / (1.0 + lambda_o) * cos_om / wo.z;
+        if reflect {
+            let value = d * g2 * f / (4.0 * wo.z * wi.z);
+            return (Vec3::splat(value), pdf_wm / (4.0 * cos_om) * f);
+        }
+        let denom = cos_im + cos_om / etap;
+        let denom2 = denom * denom;
+        if denom2 <= 0.0 {
+            return (Vec3::ZERO, 0.0);
+        }
+        let value =
+            (1.0 - f) * d * g2 * (cos_im * cos_om / (wi.z * wo.z * denom2)).abs() / (etap * etap);
+        let pdf = pdf_wm * cos_im.abs() / denom2 * (1.0 - f);
+        (self.base_color * value, pdf)
+    }
+
+    /// Draws a rough dielectric boundary's `wi`: a visible microfacet normal, then reflection
+    /// with probability `F` or else refraction through it.
+    fn sample_dielectric_direction(&self, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<Vec3> {
+        if wo.z <= 0.0 {
+            return None;
+        }
+        let wm = sample_ggx_vndf(wo, self.alpha, u);
+        let cos_om = wo.dot(wm);
+        if u_lobe < fresnel_dielectric(cos_om, self.eta) {
+            let wi = 2.0 * cos_om * wm - wo;
+            return (wi.z > 0.0).then_some(wi);
+        }
+        refract(wo, wm, self.eta).filter(|wi| wi.z < 0.0)
     }
 
     /// The Lambertian base's albedo: what the transmission leaves of the base colour.
@@ -318,6 +481,9 @@ impl Material {
     /// `f(wo, wi)` and the pdf of `sample` drawing `wi`, sharing the microfacet terms.
     #[inline(always)]
     pub fn eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
+        if self.eta > 0.0 {
+            return self.eval_pdf_dielectric(wo, wi);
+        }
         if wo.z <= 0.0 || wi.z <= 0.0 {
             if wo.z > 0.0 && wi.z < 0.0 && self.transmits_rough() {
                 return self.eval_pdf_transmitted(wo, wi);
@@ -359,6 +525,9 @@ impl Material {
     /// The direction part of [`Self::sample`], for callers that may not need its value.
     #[inline(always)]
     pub fn sample_direction(&self, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<Vec3> {
+        if self.eta > 0.0 {
+            return self.sample_dielectric_direction(wo, u_lobe, u);
+        }
         if wo.z <= 0.0 {
             return None;
         }
@@ -389,6 +558,33 @@ impl Material {
         let (f, pdf) = self.eval_pdf(wo, wi);
         (pdf > 0.0).then_some(BsdfSample { wi, f, pdf })
     }
+}
+
+/// The exact Fresnel reflectance of unpolarised light at a dielectric interface of relative
+/// IOR `eta` (beyond over incident), for `cos θ` on the incident side; 1 past the critical
+/// angle (total internal reflection).
+pub fn fresnel_dielectric(cos_i: f32, eta: f32) -> f32 {
+    let cos_i = cos_i.clamp(0.0, 1.0);
+    let sin2_t = (1.0 - cos_i * cos_i) / (eta * eta);
+    if sin2_t >= 1.0 {
+        return 1.0;
+    }
+    let cos_t = (1.0 - sin2_t).sqrt();
+    let r_parallel = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
+    let r_perpendicular = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
+    0.5 * (r_parallel * r_parallel + r_perpendicular * r_perpendicular)
+}
+
+/// `wo` refracted through the interface of normal `n` (`wo · n > 0`) into the medium of
+/// relative IOR `eta`; `None` past the critical angle.
+pub fn refract(wo: Vec3, n: Vec3, eta: f32) -> Option<Vec3> {
+    let cos_i = wo.dot(n);
+    let sin2_t = (1.0 - cos_i * cos_i).max(0.0) / (eta * eta);
+    if sin2_t >= 1.0 {
+        return None;
+    }
+    let cos_t = (1.0 - sin2_t).sqrt();
+    Some(-wo / eta + (cos_i / eta - cos_t) * n)
 }
 
 /// Schlick's `(1 − cos)⁵`: `F = F0 + (F90 − F0)·(1 − cos)⁵`.
@@ -950,5 +1146,260 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// The 0.999 quantile of χ² with `dof` degrees of freedom (Wilson–Hilferty).
+    fn chi_square_critical(dof: usize) -> f64 {
+        let k = dof as f64;
+        k * (1.0 - 2.0 / (9.0 * k) + 3.090 * (2.0 / (9.0 * k)).sqrt()).powi(3)
+    }
+
+    /// Pearson's χ² of `n` directions drawn by `draw` against the density `pdf` over the
+    /// sphere, in 24 bins of `cos θ` by 32 of `φ` (each integrated by a 64 × 64 midpoint
+    /// rule); bins expecting fewer than 5 draws are pooled, as is the mass of failed draws.
+    /// The statistic and the 0.999 critical value for its degrees of freedom.
+    fn chi_square(
+        pdf: impl Fn(Vec3) -> f32,
+        mut draw: impl FnMut() -> Option<Vec3>,
+        n: usize,
+    ) -> (f64, f64) {
+        const NT: usize = 24;
+        const NP: usize = 32;
+        // Fine enough for the rough transmission's steep rise near the horizon, where 12 × 12
+        // overestimated the integral by 3% at grazing incidence.
+        const SUB: usize = 64;
+        let bin = |w: Vec3| {
+            let t = (((w.z + 1.0) * 0.5 * NT as f32) as usize).min(NT - 1);
+            let phi = w.y.atan2(w.x).rem_euclid(std::f32::consts::TAU);
+            let p = ((phi / std::f32::consts::TAU * NP as f32) as usize).min(NP - 1);
+            t * NP + p
+        };
+        let mut observed = vec![0f64; NT * NP + 1];
+        for _ in 0..n {
+            match draw() {
+                Some(w) => observed[bin(w)] += 1.0,
+                None => observed[NT * NP] += 1.0,
+            }
+        }
+        let mut expected = vec![0f64; NT * NP + 1];
+        let cell = (2.0 / NT as f64) * (std::f64::consts::TAU / NP as f64) / (SUB * SUB) as f64;
+        for t in 0..NT {
+            for p in 0..NP {
+                let mut sum = 0.0;
+                for k in 0..SUB * SUB {
+                    let z =
+                        -1.0 + 2.0 * (t as f64 + ((k % SUB) as f64 + 0.5) / SUB as f64) / NT as f64;
+                    let phi = std::f64::consts::TAU
+                        * (p as f64 + ((k / SUB) as f64 + 0.5) / SUB as f64)
+                        / NP as f64;
+                    let r = (1.0 - z * z).max(0.0).sqrt();
+                    let w = Vec3::new((r * phi.cos()) as f32, (r * phi.sin()) as f32, z as f32);
+                    sum += pdf(w) as f64 * cell;
+                }
+                expected[t * NP + p] = sum * n as f64;
+            }
+        }
+        let drawn: f64 = expected[..NT * NP].iter().sum();
+        expected[NT * NP] = (n as f64 - drawn).max(0.0);
+        let (mut statistic, mut dof) = (0.0, 0usize);
+        let (mut pooled_o, mut pooled_e) = (0.0, 0.0);
+        for (o, e) in observed.iter().zip(&expected) {
+            if *e < 5.0 {
+                pooled_o += o;
+                pooled_e += e;
+            } else {
+                statistic += (o - e) * (o - e) / e;
+                dof += 1;
+            }
+        }
+        if pooled_e > 0.0 {
+            statistic += (pooled_o - pooled_e) * (pooled_o - pooled_e) / pooled_e.max(5.0);
+            dof += 1;
+        }
+        (statistic, chi_square_critical(dof.saturating_sub(1).max(1)))
+    }
+
+    /// A direction `θo` from the normal.
+    fn at(cos_o: f32) -> Vec3 {
+        Vec3::new((1.0 - cos_o * cos_o).sqrt(), 0.0, cos_o)
+    }
+
+    /// The sampling density is the evaluated pdf (issue 40: comparing `sample`'s pdf with
+    /// `eval_pdf` was circular, as `sample` returns `eval_pdf`): a χ² of drawn directions
+    /// against `eval_pdf` over the sphere, for the layered material (diffuse and GGX, metal,
+    /// rough thin transmission) and the rough dielectric (entering and leaving), at several
+    /// roughnesses and incidences. 200 000 draws each, at the 0.999 quantile: with about 40
+    /// tests, a chance failure has odds of about 1 in 25. The negative cases: the same draws
+    /// against the pdf of a wrong roughness (10% off) or a wrong IOR, which the test rejects.
+    #[test]
+    fn sampled_directions_follow_the_evaluated_pdf() {
+        let mut rng = Rng::new(40, 11);
+        let mut layered: Vec<MaterialDesc> = [(0.0, 0.4), (1.0, 0.5), (0.5, 0.3)]
+            .iter()
+            .map(|&(m, r)| desc(m, r, Vec3::splat(0.7)))
+            .collect();
+        layered.push(MaterialDesc {
+            roughness: 0.5,
+            transmission: 0.8,
+            base_color: Vec3::new(0.9, 0.7, 0.5),
+            ..MaterialDesc::clear_glass("frosted")
+        });
+        let mut materials: Vec<(String, Material)> = layered
+            .iter()
+            .map(|d| (format!("{d:?}"), Material::from_desc(d)))
+            .collect();
+        for roughness in [0.35f32, 0.6] {
+            for (ior, inside) in [(1.5f32, false), (1.5, true), (1.33, false)] {
+                let glass = Material::from_desc(&MaterialDesc {
+                    roughness,
+                    ior,
+                    volume: Some(volume_desc()),
+                    ..MaterialDesc::clear_glass("thick")
+                });
+                let name = format!("dielectric r {roughness} ior {ior} inside {inside}");
+                materials.push((name, glass.dielectric(inside)));
+            }
+        }
+        for (name, mat) in &materials {
+            for cos_o in [0.9f32, 0.5, 0.15] {
+                let wo = at(cos_o);
+                let n = 200_000;
+                let (stat, critical) = chi_square(
+                    |wi| mat.eval_pdf(wo, wi).1,
+                    || mat.sample_direction(wo, rng.uniform(), rng.uniform2()),
+                    n,
+                );
+                assert!(
+                    stat < critical,
+                    "{name} cos {cos_o}: χ² {stat} > {critical}"
+                );
+            }
+        }
+        // The negative cases: a roughness 10% off, and a dielectric's IOR 1.5 for 1.33.
+        let mat = Material::from_desc(&desc(0.0, 0.4, Vec3::splat(0.7)));
+        let wrong = Material::from_desc(&desc(0.0, 0.44, Vec3::splat(0.7)));
+        let wo = at(0.5);
+        let (stat, critical) = chi_square(
+            |wi| wrong.eval_pdf(wo, wi).1,
+            || mat.sample_direction(wo, rng.uniform(), rng.uniform2()),
+            200_000,
+        );
+        assert!(
+            stat > critical,
+            "a roughness 10% off passed: {stat} < {critical}"
+        );
+        let thick = |ior| {
+            Material::from_desc(&MaterialDesc {
+                roughness: 0.35,
+                ior,
+                volume: Some(volume_desc()),
+                ..MaterialDesc::clear_glass("thick")
+            })
+            .dielectric(false)
+        };
+        let (mat, wrong) = (thick(1.33), thick(1.5));
+        let (stat, critical) = chi_square(
+            |wi| wrong.eval_pdf(wo, wi).1,
+            || mat.sample_direction(wo, rng.uniform(), rng.uniform2()),
+            200_000,
+        );
+        assert!(stat > critical, "a wrong IOR passed: {stat} < {critical}");
+    }
+
+    fn volume_desc() -> crate::asset::desc::VolumeDesc {
+        crate::asset::desc::VolumeDesc {
+            thickness: 0.01,
+            attenuation_color: Vec3::ONE,
+            attenuation_distance: f32::INFINITY,
+        }
+    }
+
+    /// A rough dielectric boundary never creates energy: the weight `f·|cos θi|/pdf` of each
+    /// drawn direction, times `η²` for a refraction (radiance's compression, which conserves
+    /// power), is `G2/G1 ≤ 1`; they average above 0.7 (single scattering loses what bounces
+    /// between microfacets: a few percent outside, up to 26% inside near the critical angle
+    /// at roughness 0.6, as for other single-scattering GGX dielectrics). A smooth boundary conserves exactly: reflection with the exact
+    /// Fresnel's frequency, Snell's law, total internal reflection past the critical angle.
+    /// The negative case: without the `η²` the refracted power is off by half, far outside.
+    #[test]
+    fn a_dielectric_boundary_conserves_power() {
+        let mut rng = Rng::new(40, 12);
+        for roughness in [0.35f32, 0.6] {
+            for (ior, inside) in [(1.5f32, false), (1.5, true), (2.4, false)] {
+                let glass = Material::from_desc(&MaterialDesc {
+                    roughness,
+                    ior,
+                    volume: Some(volume_desc()),
+                    ..MaterialDesc::clear_glass("thick")
+                })
+                .dielectric(inside);
+                let eta = if inside { 1.0 / ior } else { ior };
+                for cos_o in [0.9f32, 0.5, 0.15] {
+                    let wo = at(cos_o);
+                    let (mut power, mut without_eta) = (vec![], vec![]);
+                    for _ in 0..200_000 {
+                        let s = glass.sample(wo, rng.uniform(), rng.uniform2());
+                        let (p, q) = s.map_or((0.0, 0.0), |s| {
+                            let w = (s.f.x * s.wi.z.abs() / s.pdf) as f64;
+                            let scale = if s.wi.z < 0.0 { eta * eta } else { 1.0 };
+                            assert!(w * scale as f64 <= 1.0 + 1e-4, "{w} {scale}");
+                            (w * scale as f64, w)
+                        });
+                        power.push(p);
+                        without_eta.push(q);
+                    }
+                    let (mean, se) = mean_and_se(&power);
+                    let label = format!("r {roughness} ior {ior} inside {inside} cos {cos_o}");
+                    assert!(
+                        mean <= 1.0 + 4.0 * se && mean > 0.7,
+                        "{label}: {mean} ± {se}"
+                    );
+                    // Where most of it refracts (near normal incidence), the η² matters.
+                    let (plain, _) = mean_and_se(&without_eta);
+                    if cos_o > 0.8 {
+                        assert!((plain - mean).abs() > 0.2, "{label}: {plain} vs {mean}");
+                    }
+                }
+            }
+        }
+        // Smooth: the frequency of reflection is F, the weights 1 and 1/η², Snell's law.
+        let smooth = Material::from_desc(&MaterialDesc {
+            volume: Some(volume_desc()),
+            ..MaterialDesc::clear_glass("clear")
+        });
+        for inside in [false, true] {
+            let glass = smooth.dielectric(inside);
+            assert!(glass.is_smooth_dielectric());
+            let eta = if inside { 1.0 / 1.5 } else { 1.5 };
+            for cos_o in [1.0f32, 0.8, 0.5, 0.2] {
+                let wo = at(cos_o);
+                let f = fresnel_dielectric(cos_o, eta) as f64;
+                let n = 100_000;
+                let mut reflected = 0usize;
+                for k in 0..n {
+                    let (wi, weight) =
+                        glass.sample_smooth_dielectric(wo, (k as f32 + 0.5) / n as f32);
+                    if wi.z > 0.0 {
+                        reflected += 1;
+                        assert_eq!(weight, Vec3::ONE);
+                        assert!((wi - Vec3::new(-wo.x, 0.0, wo.z)).length() < 1e-6);
+                    } else {
+                        assert!((weight.x - 1.0 / (eta * eta)).abs() < 1e-6);
+                        // Snell: sin θt = sin θo / η, on the far side.
+                        let sin_t = (1.0 - wi.z * wi.z).sqrt();
+                        let sin_o = (1.0 - cos_o * cos_o).sqrt();
+                        assert!((sin_t * eta - sin_o).abs() < 1e-5, "{sin_t} {sin_o}");
+                        assert!(wi.x <= 0.0);
+                    }
+                }
+                let frequency = reflected as f64 / n as f64;
+                assert!((frequency - f).abs() < 2.0 / n as f64, "{frequency} vs {f}");
+                // Total internal reflection: inside, past the critical angle (41.8°).
+                assert_eq!(inside && cos_o < 0.74, f == 1.0, "cos {cos_o}");
+            }
+        }
+        // Normal incidence: ((η − 1)/(η + 1))², 0.04 for 1.5, from either side.
+        assert!((fresnel_dielectric(1.0, 1.5) - 0.04).abs() < 1e-6);
+        assert!((fresnel_dielectric(1.0, 1.0 / 1.5) - 0.04).abs() < 1e-6);
     }
 }

@@ -161,6 +161,7 @@ fn assert_scenes_close(a: &SceneDesc, b: &SceneDesc) {
         assert_eq!(m.specular_color, n.specular_color, "{}", m.name);
         assert_eq!(m.ior, n.ior, "{}", m.name);
         assert_eq!(m.transmission, n.transmission, "{}", m.name);
+        assert_eq!(m.volume, n.volume, "{}", m.name);
         assert_eq!(m.double_sided, n.double_sided, "{}", m.name);
     }
     assert_eq!(a.meshes.len(), b.meshes.len());
@@ -1467,6 +1468,48 @@ fn broken_files_give_errors_naming_the_file_and_field() {
             ],
         ),
         (
+            "attenuation_color_above_one.gltf",
+            edited(|d| {
+                with_material(
+                    d,
+                    json!({"KHR_materials_volume": {"thicknessFactor": 1.0, "attenuationColor": [1.0, 2.0, 0.5]}}),
+                )
+            }),
+            &[
+                "material 0 \"Paint\"",
+                "KHR_materials_volume.attenuationColor",
+                "[0, 1]",
+            ],
+        ),
+        (
+            "attenuation_distance_zero.gltf",
+            edited(|d| {
+                with_material(
+                    d,
+                    json!({"KHR_materials_volume": {"thicknessFactor": 1.0, "attenuationDistance": 0.0}}),
+                )
+            }),
+            &[
+                "material 0 \"Paint\"",
+                "KHR_materials_volume.attenuationDistance",
+                "positive",
+            ],
+        ),
+        (
+            "attenuation_color_short.gltf",
+            edited(|d| {
+                with_material(
+                    d,
+                    json!({"KHR_materials_volume": {"thicknessFactor": 1.0, "attenuationColor": [1.0, 0.5]}}),
+                )
+            }),
+            &[
+                "material 0 \"Paint\"",
+                "KHR_materials_volume.attenuationColor",
+                "3 numbers",
+            ],
+        ),
+        (
             "ior_not_a_number.gltf",
             edited(|d| with_material(d, json!({"KHR_materials_ior": {"ior": "NaN"}}))),
             &[
@@ -1658,11 +1701,12 @@ fn specular_and_ior_extensions_are_read() {
 
 /// Glass as Blender 3.4 writes a Principled BSDF of Transmission 1 (`KHR_materials_transmission`
 /// with its factor, the IOR only where it is not 1.5, no volume): thin-walled transmission,
-/// read without a warning; its texture is read from R; rough transmission is read as such. A
-/// volume with a thickness is rendered thin-walled, and says so, naming the file and the
-/// material.
+/// read without a warning; rough transmission is read as such. A volume with a thickness is
+/// read with its attenuation (Beer–Lambert's σ = −ln(colour)/distance), thickness 0 is
+/// thin-walled, and a volume of infinite IOR warns that it is rendered thin, naming the file
+/// and the material.
 #[test]
-fn transmission_is_read_and_what_is_not_rendered_warns() {
+fn transmission_and_volume_are_read_and_what_is_not_rendered_warns() {
     let dir = temp_dir("transmission");
     let mut doc = triangle_doc(&dir, "glass", &TRIANGLE, &[0, 1, 2]);
     doc["extensionsUsed"] = json!([
@@ -1679,25 +1723,40 @@ fn transmission_is_read_and_what_is_not_rendered_warns() {
                         "KHR_materials_volume": {"thicknessFactor": 0.02}}},
         {"name": "Frosted", "pbrMetallicRoughness": {"roughnessFactor": 0.4},
          "extensions": {"KHR_materials_transmission": {"transmissionFactor": 1.0},
-                        "KHR_materials_volume": {"thicknessFactor": 0.0}}}
+                        "KHR_materials_volume": {"thicknessFactor": 0.0}}},
+        {"name": "Amber", "pbrMetallicRoughness": {"roughnessFactor": 0.0},
+         "extensions": {"KHR_materials_transmission": {"transmissionFactor": 1.0},
+                        "KHR_materials_volume": {"thicknessFactor": 0.5,
+                            "attenuationColor": [0.9, 0.6, 0.2], "attenuationDistance": 0.25}}},
+        {"name": "Mirror glass", "pbrMetallicRoughness": {"roughnessFactor": 0.0},
+         "extensions": {"KHR_materials_transmission": {"transmissionFactor": 1.0},
+                        "KHR_materials_ior": {"ior": 0.0},
+                        "KHR_materials_volume": {"thicknessFactor": 0.1}}}
     ]);
     doc["meshes"][0]["primitives"][0]["material"] = json!(0);
     let path = dir.join("glass.gltf");
     write_json(&path, &doc);
     let scene = load_gltf(&path).unwrap();
-    let [pane, thick, frosted] = &scene.materials[..] else {
-        panic!("three materials");
+    let [pane, thick, frosted, amber, mirror] = &scene.materials[..] else {
+        panic!("five materials");
     };
-    assert_eq!((pane.transmission, pane.ior), (1.0, 1.5));
+    assert_eq!((pane.transmission, pane.ior, pane.volume), (1.0, 1.5, None));
     assert_eq!((thick.transmission, thick.ior), (0.9, 1.33));
-    assert_eq!(frosted.transmission, 1.0);
+    let volume = thick.volume.unwrap();
+    assert_eq!(volume.thickness, 0.02);
+    assert_eq!(volume.sigma(), Vec3::ZERO);
+    assert_eq!((frosted.transmission, frosted.volume), (1.0, None));
     assert_eq!(frosted.roughness, 0.4);
+    let sigma = amber.volume.unwrap().sigma();
+    let expected = Vec3::new(0.9f32.ln(), 0.6f32.ln(), 0.2f32.ln()) / -0.25;
+    assert!((sigma - expected).abs().max_element() < 1e-5, "{sigma}");
+    assert_eq!(mirror.volume, None);
     let warnings = &scene.warnings;
     assert_eq!(warnings.len(), 1, "{warnings:?}");
     assert!(
         warnings[0].contains("glass.gltf")
-            && warnings[0].contains("\"Thick\"")
-            && warnings[0].contains("thicknessFactor"),
+            && warnings[0].contains("\"Mirror glass\"")
+            && warnings[0].contains("infinite IOR"),
         "{warnings:?}"
     );
     let _ = fs::remove_dir_all(&dir);
@@ -1776,7 +1835,7 @@ fn specular_textures_are_read_and_unread_extensions_warn() {
     let _ = fs::remove_dir_all(&dir);
 }
 
-/// Non-default specular layers and IORs are written as the two extensions (declared in
+/// Non-default specular layers, IORs, transmission and volumes are written as their extensions (declared in
 /// `extensionsUsed`) and read back equal; defaults write neither.
 #[test]
 fn specular_and_ior_round_trip() {
@@ -1789,6 +1848,11 @@ fn specular_and_ior_round_trip() {
     desc.materials[1].specular_factor = 0.25;
     desc.materials[1].specular_color = Vec3::new(1.5, 0.1, 0.0);
     desc.materials[1].transmission = 0.75;
+    desc.materials[1].volume = Some(portalview::asset::desc::VolumeDesc {
+        thickness: 0.02,
+        attenuation_color: Vec3::new(0.5, 0.75, 1.0),
+        attenuation_distance: 0.3,
+    });
     export_glb(&desc, &path).unwrap();
     assert_scenes_close(&load_gltf(&path).unwrap(), &desc);
     let used = |path: &Path| -> Vec<String> {
@@ -1799,6 +1863,7 @@ fn specular_and_ior_round_trip() {
     assert!(extensions.iter().any(|e| e == "KHR_materials_specular"));
     assert!(extensions.iter().any(|e| e == "KHR_materials_ior"));
     assert!(extensions.iter().any(|e| e == "KHR_materials_transmission"));
+    assert!(extensions.iter().any(|e| e == "KHR_materials_volume"));
     export_glb(&plain, &path).unwrap();
     assert_scenes_close(&load_gltf(&path).unwrap(), &plain);
     let extensions = used(&path);

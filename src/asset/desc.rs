@@ -91,11 +91,38 @@ pub struct MaterialDesc {
     /// of the dielectric base that transmits instead of scattering diffusely. Without
     /// `KHR_materials_volume` the surface is thin-walled: light goes straight through it.
     pub transmission: f32,
+    /// `KHR_materials_volume` with `thicknessFactor` > 0: the mesh is closed and filled with
+    /// the transmitting dielectric, which refracts (`None`: thin-walled).
+    pub volume: Option<VolumeDesc>,
     pub double_sided: bool,
     /// `baseColorFactor`'s alpha.
     pub alpha: f32,
     pub alpha_mode: AlphaMode,
     pub textures: MaterialTextures,
+}
+
+/// `KHR_materials_volume`: what fills a closed mesh of a transmitting material.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct VolumeDesc {
+    /// `thicknessFactor` (> 0): only whether the volume is there matters to a path tracer,
+    /// which meets the mesh's real thickness.
+    pub thickness: f32,
+    /// `attenuationColor`: the colour white light becomes after `attenuation_distance`.
+    pub attenuation_color: Vec3,
+    /// `attenuationDistance` in metres (infinite: no absorption).
+    pub attenuation_distance: f32,
+}
+
+impl VolumeDesc {
+    /// Beer–Lambert's absorption coefficient per metre, `−ln(attenuationColor) /
+    /// attenuationDistance` per channel, as the extension defines it.
+    pub fn sigma(&self) -> Vec3 {
+        if !self.attenuation_distance.is_finite() {
+            return Vec3::ZERO;
+        }
+        let c = self.attenuation_color.clamp(Vec3::splat(1e-6), Vec3::ONE);
+        Vec3::new(-c.x.ln(), -c.y.ln(), -c.z.ln()) / self.attenuation_distance
+    }
 }
 
 /// The glTF defaults of the specular layer: what a file without the extensions means.
@@ -119,6 +146,7 @@ impl MaterialDesc {
             specular_color: DEFAULT_SPECULAR_COLOR,
             ior: DEFAULT_IOR,
             transmission: 0.0,
+            volume: None,
             double_sided: true,
             alpha: 1.0,
             alpha_mode: AlphaMode::Opaque,

@@ -103,6 +103,12 @@ struct Shading<'m> {
     /// transmits through a rough lobe (light reaches it from both sides); `None` for one that
     /// only reflects.
     x_below: Option<Vec3>,
+    /// The ray came from behind the geometric normal: inside the mesh, for a volume.
+    back: bool,
+    /// Beer–Lambert's coefficient of the medium above the surface (the path's) and beneath it
+    /// (a volume's inside, entered from the front), for shadow rays that leave either way.
+    sigma: Vec3,
+    sigma_below: Vec3,
 }
 
 impl Shading<'_> {
@@ -126,6 +132,23 @@ impl Shading<'_> {
         }
     }
 
+    /// The transmittance of the medium on the side of a ray leaving along `wi_local` (above
+    /// the surface if `wi_local.z > 0`) over the distance `t`.
+    #[inline(always)]
+    fn absorption(&self, wi_local: Vec3, t: f32) -> Vec3 {
+        beer_lambert(self.medium_along(wi_local), t)
+    }
+
+    /// The absorption of the medium a ray along `wi_local` travels in.
+    #[inline(always)]
+    fn medium_along(&self, wi_local: Vec3) -> Vec3 {
+        if wi_local.z > 0.0 {
+            self.sigma
+        } else {
+            self.sigma_below
+        }
+    }
+
     /// The normal the light selection weighs lights by: `Vec3::ZERO` (no side) where light
     /// arrives from both sides.
     #[inline(always)]
@@ -144,6 +167,27 @@ impl Shading<'_> {
             Some((ns, n)) => crate::surface::bump_shadowing_term(ns, n, wi),
             None => 1.0,
         }
+    }
+}
+
+/// The fraction of light that crosses a distance `t` of a medium of absorption `sigma`
+/// (1 where it does not absorb, whatever `t`).
+#[inline(always)]
+fn beer_lambert(sigma: Vec3, t: f32) -> Vec3 {
+    if sigma == Vec3::ZERO {
+        Vec3::ONE
+    } else {
+        (-sigma * t).exp()
+    }
+}
+
+/// The medium beyond a volume's boundary for a ray crossing it from the `back` (leaving it:
+/// none, as volumes are not nested) or from the front (its absorption).
+#[inline(always)]
+fn volume_sigma(material: &Material, back: bool) -> Vec3 {
+    match material.volume {
+        Some(v) if !back => v.sigma,
+        _ => Vec3::ZERO,
     }
 }
 
@@ -205,7 +249,14 @@ pub struct Integrator<'a> {
     scale: f32,
     /// The scene has thin glass that rays cross ([`crate::scene::Geometry::has_panes`]).
     panes: bool,
+    /// The scene has volumes (`KHR_materials_volume`): boundaries that refract, media that
+    /// absorb.
+    volumes: bool,
 }
+
+/// The most smooth dielectric events (reflections and refractions at a volume's boundary,
+/// which do not count as path depth) one path makes; a path that would make more ends.
+const MAX_INTERFACE_EVENTS: u32 = 64;
 
 /// The most panes one ray crosses; a ray that would cross more is taken as stopped.
 const MAX_PANE_CROSSINGS: u32 = 32;
@@ -239,6 +290,7 @@ impl<'a> Integrator<'a> {
             ..settings
         };
         let area_lights = &scene.geometry.lights;
+        let volumes = scene.geometry.materials.iter().any(|m| m.volume.is_some());
         Integrator {
             scene,
             lights,
@@ -246,11 +298,14 @@ impl<'a> Integrator<'a> {
             settings,
             scale: scene.geometry.scale(),
             panes: scene.geometry.has_panes,
+            volumes,
             // A cut-out light lets rays through its holes: it must be found by tracing.
             polygon_lights: area_lights.len() <= DIRECT_LIGHT_TEST_LIMIT
                 && area_lights.iter().all(|l| l.polygon.is_some())
                 // Rays that leave the scene see the environment: the shortcut would miss it.
                 && scene.environment.is_none()
+                // Light seen through refracting glass is not along the straight line.
+                && !volumes
                 && scene
                     .geometry
                     .light_surfaces
@@ -362,8 +417,13 @@ impl<'a> Integrator<'a> {
         // Two context buffers, reused in turn by consecutive vertices (see `fill_context`).
         let PathContexts { even, odd } = contexts;
         let mut previous: Option<(Vec3, Vec3, bool, f32)> = None;
+        // The medium the ray travels in (absorbing inside a volume), and the smooth
+        // dielectric events so far, which do not count as depth.
+        let mut sigma = Vec3::ZERO;
+        let mut interface_events = 0;
         stats.camera_rays += 1;
-        for depth in 0..=self.settings.max_depth {
+        let mut depth = 0;
+        while depth <= self.settings.max_depth {
             // At the last vertex only emission matters: with polygon lights, test them directly.
             if depth == self.settings.max_depth && self.polygon_lights {
                 let prev = previous.map(|(x, ng, picked, bsdf_pdf)| Previous {
@@ -394,6 +454,13 @@ impl<'a> Integrator<'a> {
                             previous = None;
                         }
                     }
+                }
+            }
+            if self.volumes && sigma != Vec3::ZERO {
+                // Inside a volume: absorbed on the way (all of it, if it never leaves).
+                match &hit {
+                    Some(h) => beta *= beer_lambert(sigma, h.t),
+                    None => break,
                 }
             }
             let Some(hit) = hit else {
@@ -439,7 +506,9 @@ impl<'a> Integrator<'a> {
                 }
             }
             let material = &geometry.materials[tri.material as usize];
-            if depth == self.settings.max_depth || material.is_black() {
+            // A volume's smooth boundary is crossed at any depth: it is not a path vertex.
+            let volume = self.volumes && material.volume.is_some();
+            if (depth == self.settings.max_depth && !volume) || material.is_black() {
                 break;
             }
             let mapped = surface
@@ -454,6 +523,51 @@ impl<'a> Integrator<'a> {
             if let (Some(s), Some(point)) = (surface, &point) {
                 textured = s.material(&point.uvs, shading.wo_local.z);
                 shading.material = &textured;
+            }
+            // A volume's boundary: its dielectric with the probability of its share, or the rest.
+            let component;
+            if self.volumes {
+                shading.sigma = sigma;
+                shading.sigma_below = sigma;
+            }
+            if volume {
+                let material = shading.material;
+                if rng.uniform() < material.dielectric_share() {
+                    component = material.dielectric(shading.back);
+                    if component.is_smooth_dielectric() {
+                        interface_events += 1;
+                        if interface_events > MAX_INTERFACE_EVENTS {
+                            break;
+                        }
+                        let (wi_local, weight) =
+                            component.sample_smooth_dielectric(shading.wo_local, rng.uniform());
+                        let wi = shading.frame.to_world(wi_local);
+                        let below = wi_local.z < 0.0;
+                        // The shading normal sent it to the other side of the surface.
+                        if (wi.dot(shading.ng) < 0.0) != below {
+                            break;
+                        }
+                        if below {
+                            o = Self::offset(p, -shading.ng, scale);
+                            sigma = volume_sigma(material, shading.back);
+                        } else {
+                            o = shading.x;
+                        }
+                        beta *= weight;
+                        d = wi;
+                        // No light sampling here: what the path meets next takes full weight.
+                        previous = None;
+                        continue;
+                    }
+                    shading.x_below = Some(Self::offset(p, -shading.ng, scale));
+                    shading.sigma_below = volume_sigma(material, shading.back);
+                } else {
+                    component = material.opaque_part(shading.wo_local.z);
+                }
+                shading.material = &component;
+                if depth == self.settings.max_depth {
+                    break;
+                }
             }
             let material = shading.material;
 
@@ -503,8 +617,12 @@ impl<'a> Integrator<'a> {
                 beta /= survive;
             }
             previous = Some((shading.x, shading.pick_normal(), picked, bs.pdf));
+            if self.volumes {
+                sigma = shading.medium_along(bs.wi);
+            }
             o = origin;
             d = wi;
+            depth += 1;
         }
         l
     }
@@ -652,6 +770,9 @@ impl<'a> Integrator<'a> {
             x_below: material
                 .transmits_rough()
                 .then(|| Self::offset(p, -ng, scale)),
+            back,
+            sigma: Vec3::ZERO,
+            sigma_below: Vec3::ZERO,
         })
     }
 
@@ -804,9 +925,12 @@ impl<'a> Integrator<'a> {
         } else {
             f32::INFINITY
         };
-        let transmittance = self.visibility(tracer, origin, sample.wi, tmax);
+        let mut transmittance = self.visibility(tracer, origin, sample.wi, tmax);
         if transmittance == Vec3::ZERO {
             return Vec3::ZERO;
+        }
+        if self.volumes {
+            transmittance *= s.absorption(wi_local, sample.dist);
         }
         f * transmittance * sample.irradiance * wi_local.z.abs() / lamp_prob
     }
@@ -926,9 +1050,12 @@ impl<'a> Integrator<'a> {
             return Vec3::ZERO;
         }
         stats.shadow_rays += 1;
-        let transmittance = self.visibility(tracer, origin, wi, tmax);
+        let mut transmittance = self.visibility(tracer, origin, wi, tmax);
         if transmittance == Vec3::ZERO {
             return Vec3::ZERO;
+        }
+        if self.volumes {
+            transmittance *= s.absorption(wi_local, tmax);
         }
         f * transmittance * le * wi_local.z.abs() * power_heuristic(light_pdf, bsdf_pdf) / light_pdf
     }

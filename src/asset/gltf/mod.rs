@@ -48,7 +48,7 @@ use serde_json::{Map, Value};
 
 use crate::asset::desc::{
     AlphaMode, DEFAULT_IOR, DEFAULT_PORTAL_ALPHA, DEFAULT_SPECULAR_COLOR, DEFAULT_SPECULAR_FACTOR,
-    MaterialDesc, MaterialTextures, MeshDesc, NormalTexture, PortalDesc, SceneDesc,
+    MaterialDesc, MaterialTextures, MeshDesc, NormalTexture, PortalDesc, SceneDesc, VolumeDesc,
 };
 use crate::asset::texture::TextureRef;
 use crate::camera::Camera;

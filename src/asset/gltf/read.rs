@@ -778,20 +778,7 @@ pub(super) fn material_desc(
         }
         if let Some(value) = specular.get("specularColorFactor") {
             let at = field("specularColorFactor");
-            let channels = match value.as_array() {
-                Some(items) if items.len() == 3 => items
-                    .iter()
-                    .map(|v| number(file, &at, v))
-                    .collect::<Result<Vec<f32>, _>>()?,
-                _ => {
-                    return Err(invalid(
-                        file,
-                        at,
-                        format!("must be an array of 3 numbers, found {value}"),
-                    ));
-                }
-            };
-            specular_color = Vec3::new(channels[0], channels[1], channels[2]);
+            specular_color = vec3(file, &at, value)?;
             if specular_color.min_element() < 0.0 {
                 return Err(invalid(
                     file,
@@ -838,22 +825,64 @@ pub(super) fn material_desc(
             textures.transmission = Some(doc.texture_ref(info, &at, images)?);
         }
     }
-    if let Some(volume) = extension(VOLUME_EXTENSION)? {
-        let at = format!("{at}, extensions.{VOLUME_EXTENSION}.thicknessFactor");
-        let thickness = match volume.get("thicknessFactor") {
-            Some(value) => number(file, &at, value)?,
+    let mut volume = None;
+    if let Some(extension) = extension(VOLUME_EXTENSION)? {
+        let field = |key: &str| format!("{at}, extensions.{VOLUME_EXTENSION}.{key}");
+        let thickness = match extension.get("thicknessFactor") {
+            Some(value) => number(file, &field("thicknessFactor"), value)?,
             None => 0.0,
         };
         if thickness < 0.0 {
-            return Err(invalid(file, at, "must not be negative"));
-        }
-        // The spec: thickness 0 is thin-walled, which is what is rendered.
-        if thickness > 0.0 && transmission > 0.0 {
-            warnings.push(format!(
-                "{}: {at} is {thickness}: a closed volume that refracts is not rendered yet; \
-                 its surfaces are rendered as thin-walled glass (straight through)",
-                file.display()
+            return Err(invalid(
+                file,
+                field("thicknessFactor"),
+                "must not be negative",
             ));
+        }
+        let attenuation_color = match extension.get("attenuationColor") {
+            Some(value) => {
+                let c = vec3(file, &field("attenuationColor"), value)?;
+                if !(c.min_element() >= 0.0 && c.max_element() <= 1.0) {
+                    return Err(invalid(
+                        file,
+                        field("attenuationColor"),
+                        format!("must be in [0, 1], found {value}"),
+                    ));
+                }
+                c
+            }
+            None => Vec3::ONE,
+        };
+        let attenuation_distance = match extension.get("attenuationDistance") {
+            Some(value) => {
+                let d = number(file, &field("attenuationDistance"), value)?;
+                if d <= 0.0 {
+                    return Err(invalid(
+                        file,
+                        field("attenuationDistance"),
+                        format!("must be positive, found {value}"),
+                    ));
+                }
+                d
+            }
+            None => f32::INFINITY,
+        };
+        // The spec: thickness 0 is thin-walled. A path tracer meets the mesh's own thickness,
+        // so the factor (and its texture) only says that the volume is there.
+        if thickness > 0.0 && transmission > 0.0 {
+            volume = Some(VolumeDesc {
+                thickness,
+                attenuation_color,
+                attenuation_distance,
+            });
+            if ior == 0.0 {
+                warnings.push(format!(
+                    "{}: {at}: a volume of infinite IOR (ior 0) reflects everything: it is \
+                     rendered as thin-walled glass",
+                    file.display()
+                ));
+                volume = None;
+            }
         }
     }
     let emits = (emissive_factor * emissive_strength).max_element() > 0.0;
@@ -878,6 +907,7 @@ pub(super) fn material_desc(
         specular_color,
         ior,
         transmission,
+        volume,
         double_sided: m.double_sided,
         alpha,
         alpha_mode,
@@ -941,6 +971,22 @@ fn core_textures(
         specular_color: None,
         transmission: None,
     })
+}
+
+/// A JSON array of three finite numbers.
+pub(super) fn vec3(file: &Path, at: &str, value: &Value) -> Result<Vec3, GltfError> {
+    match value.as_array() {
+        Some(items) if items.len() == 3 => Ok(Vec3::new(
+            number(file, at, &items[0])?,
+            number(file, at, &items[1])?,
+            number(file, at, &items[2])?,
+        )),
+        _ => Err(invalid(
+            file,
+            at,
+            format!("must be an array of 3 numbers, found {value}"),
+        )),
+    }
 }
 
 /// A JSON number that is finite as an `f32`.

@@ -65,8 +65,9 @@ pub(super) fn parse_document(file: &Path, json_bytes: &[u8]) -> Result<json::Roo
     })
 }
 
-/// The extensions that are read: emissive strength, the specular layer's factors, IOR and
-/// transmission change the materials (a volume's thickness only warns: see `read.rs`), quantized attributes are read as normalised integers.
+/// The extensions that are read: emissive strength, the specular layer's factors, IOR,
+/// transmission and volume change the materials, quantized attributes are read as normalised
+/// integers.
 pub(super) const READ_EXTENSIONS: [&str; 8] = [
     EMISSIVE_STRENGTH_EXTENSION,
     SPECULAR_EXTENSION,

@@ -471,6 +471,22 @@ pub(super) fn export_material(
             Value::Object(transmission),
         );
     }
+    if let Some(v) = &m.volume {
+        used.push(VOLUME_EXTENSION);
+        let mut volume = Map::new();
+        volume.insert("thicknessFactor".to_owned(), json_f32(v.thickness));
+        if v.attenuation_distance.is_finite() {
+            let c = v.attenuation_color.to_array().map(json_f32);
+            volume.insert("attenuationColor".to_owned(), Value::Array(c.to_vec()));
+            volume.insert(
+                "attenuationDistance".to_owned(),
+                json_f32(v.attenuation_distance),
+            );
+        }
+        extensions
+            .others
+            .insert(VOLUME_EXTENSION.to_owned(), Value::Object(volume));
+    }
     let has_material_extension =
         !extensions.others.is_empty() || extensions.emissive_strength.is_some();
     let (alpha_mode, alpha_cutoff) = match m.alpha_mode {
