@@ -14,7 +14,7 @@ use std::path::PathBuf;
 
 pub use bench::BenchArgs;
 pub use compare::CompareArgs;
-pub use portals::PortalsArgs;
+pub use portals::{PortalsArgs, check_report};
 pub use render::RenderArgs;
 pub use view::ViewArgs;
 

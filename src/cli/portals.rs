@@ -47,7 +47,8 @@ pub fn run(args: &PortalsArgs) -> Result<()> {
         let start = Instant::now();
         let checks = portals::check(&scene, args.seed);
         let seconds = start.elapsed().as_secs_f64();
-        let problems = print_checks(&scene, &checks);
+        let (report, problems) = check_report(&scene, &checks);
+        print!("{report}");
         println!("checked in {seconds:.2} s");
         if problems > 0 {
             bail!("{name}: {problems} problem(s) with its portals");
@@ -89,7 +90,7 @@ fn find(name: &str, out: &Path, args: &PortalsArgs) -> Result<()> {
     println!("wrote {}", out.display());
     let checks = portals::check(&with_found, args.seed);
     println!("\ncheck of the found portals:");
-    print_checks(&with_found, &checks);
+    print!("{}", check_report(&with_found, &checks).0);
     Ok(())
 }
 
@@ -185,14 +186,17 @@ fn print_found(scene: &Scene, found: &Found) {
     }
 }
 
-/// Prints the checks; returns how many problems they found.
-fn print_checks(scene: &Scene, checks: &[SourceCheck]) -> usize {
+/// The checks as `portals --check` prints them, and how many problems they found.
+pub fn check_report(scene: &Scene, checks: &[SourceCheck]) -> (String, usize) {
+    use std::fmt::Write;
+    let mut out = String::new();
     if checks.is_empty() {
-        println!("no portals to check");
+        out.push_str("no portals to check\n");
     }
     let mut problems = 0;
     for check in checks {
-        println!(
+        let _ = writeln!(
+            out,
             "{}: {:.1}% of its light leaves through its portals, {:.1}% ± {:.1}% past them",
             source_label(scene, check.source),
             100.0 * check.through,
@@ -200,7 +204,8 @@ fn print_checks(scene: &Scene, checks: &[SourceCheck]) -> usize {
             100.0 * check.leak_error
         );
         for p in &check.portals {
-            println!(
+            let _ = writeln!(
+                out,
                 "  {}: {:.1}%{}",
                 p.name,
                 100.0 * p.share,
@@ -212,18 +217,30 @@ fn print_checks(scene: &Scene, checks: &[SourceCheck]) -> usize {
             );
         }
         for note in &check.notes {
-            println!("  note: {note}");
+            let _ = writeln!(out, "  note: {note}");
         }
         for problem in check.problems() {
-            println!("  PROBLEM: {problem}");
+            let _ = writeln!(out, "  PROBLEM: {problem}");
             problems += 1;
         }
-        println!(
-            "  alpha with auto: {:.3} ({} rays, {:.1}% of them get out)",
-            check.auto_alpha(),
+        // The alpha rendering uses: an `auto` one is measured with the renderer's own rays,
+        // not this check's (`--seed`), so it is read from the scene, not recomputed here.
+        let _ = match scene.alpha_of(check.source) {
+            Some((alpha, true)) => writeln!(out, "  alpha (auto, as rendered): {alpha:.3}"),
+            Some((alpha, false)) => writeln!(
+                out,
+                "  alpha (set): {alpha:.3}; auto would measure about {:.3}",
+                check.auto_alpha()
+            ),
+            None => writeln!(out, "  alpha with auto: about {:.3}", check.auto_alpha()),
+        };
+        let _ = writeln!(
+            out,
+            "  {} rays drawn; {:.1}% of the light gets out of what surrounds it (the rest is \
+             stopped there)",
             check.rays,
             100.0 * check.reach
         );
     }
-    problems
+    (out, problems)
 }

@@ -82,6 +82,46 @@ pub struct Openings {
     /// Whether every way the light leaves was measured (no opening set aside as not planar or
     /// open to the light's horizon): only then may `auto` take alpha below the default.
     pub complete: bool,
+    /// The directions, seen from the light, in which its light leaves without a found opening
+    /// (past the edge of what surrounds it, through an opening whose rim is not planar, or
+    /// everywhere for a light in the open): light that goes that way without passing a portal
+    /// is a leak as much as light through an opening without one.
+    pub unfitted: Option<Directions>,
+}
+
+/// A set of directions from a point: the cells of a panorama.
+#[derive(Clone)]
+pub struct Directions {
+    origin: Vec3,
+    frame: Frame,
+    cells: Vec<bool>,
+}
+
+impl std::fmt::Debug for Directions {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let n = self.cells.iter().filter(|&&c| c).count();
+        write!(
+            f,
+            "Directions({n} of {} cells from {})",
+            self.cells.len(),
+            self.origin
+        )
+    }
+}
+
+impl Directions {
+    /// Whether the point `p` is seen from the origin in one of the directions.
+    pub fn sees(&self, p: Vec3) -> bool {
+        let Some(d) = (p - self.origin).try_normalize() else {
+            return false;
+        };
+        let local = self.frame.to_local(d);
+        let theta = local.z.clamp(-1.0, 1.0).acos();
+        let phi = local.y.atan2(local.x).rem_euclid(std::f32::consts::TAU);
+        let row = ((theta / std::f32::consts::PI * ROWS as f32) as usize).min(ROWS - 1);
+        let column = ((phi / std::f32::consts::TAU * COLUMNS as f32) as usize).min(COLUMNS - 1);
+        self.cells[row * COLUMNS + column]
+    }
 }
 
 /// Found portals: a portal per opening, and what was seen.
@@ -309,6 +349,8 @@ struct Seen {
     /// It touches a direction the light does not send light along (the light stands in the
     /// open past the edge of what surrounds it), or covers more than a hemisphere.
     open: bool,
+    /// Its cells.
+    cells: Vec<usize>,
 }
 
 /// The panorama's openings, and the weight of the lit cells and of the enclosure's.
@@ -377,11 +419,13 @@ fn openings_seen(scene: &Scene, pano: &Panorama, leaving: Leaving) -> (Vec<Seen>
                 rim: Vec::new(),
                 weight: 0.0,
                 open: false,
+                cells: Vec::new(),
             });
             solid.push(0.0);
             seen.len() - 1
         });
         seen[k].weight += pano.weight[c];
+        seen[k].cells.push(c);
         solid[k] += solid_angle(c);
     }
     // The rim: pairs across the edge between an opening and the largest surface around it (for
@@ -619,6 +663,11 @@ pub fn light_openings(scene: &Scene, index: usize) -> Openings {
     };
     let pano = Panorama::take(scene, origin, axis, Some(index), &emits);
     let (seen, total, stopped) = openings_seen(scene, &pano, Leaving::Occluded);
+    let mut unfitted = Directions {
+        origin: pano.origin,
+        frame: pano.frame,
+        cells: vec![false; pano.depth.len()],
+    };
     let mut result = Openings {
         source: Source::Light(index),
         name: light.name.clone(),
@@ -626,16 +675,22 @@ pub fn light_openings(scene: &Scene, index: usize) -> Openings {
         stopped: stopped / total.max(f32::MIN_POSITIVE),
         notes: Vec::new(),
         complete: true,
+        unfitted: None,
     };
     if result.stopped < MIN_OPENING_SHARE {
         result
             .notes
             .push("in the open: nothing near it stops its light, so no portal helps".to_owned());
+        unfitted.cells = pano.lit.clone();
+        result.unfitted = Some(unfitted);
         return result;
     }
     for s in seen {
         let share = s.weight / total.max(f32::MIN_POSITIVE);
         if s.open {
+            for &c in &s.cells {
+                unfitted.cells[c] = true;
+            }
             result.complete = false;
             result.notes.push(format!(
                 "{:.0}% of its light leaves past the edge of what surrounds it (it stands in the \
@@ -644,6 +699,8 @@ pub fn light_openings(scene: &Scene, index: usize) -> Openings {
             ));
             continue;
         }
+        // Too small for a portal of its own (and, at the panorama's resolution, often a sliver
+        // of the enclosure's own rim seen edge-on): not counted as a leak.
         if share < MIN_OPENING_SHARE {
             continue;
         }
@@ -654,6 +711,9 @@ pub fn light_openings(scene: &Scene, index: usize) -> Openings {
                 share,
             }),
             None => {
+                for &c in &s.cells {
+                    unfitted.cells[c] = true;
+                }
                 result.complete = false;
                 result.notes.push(format!(
                     "{:.0}% of its light leaves through an opening whose rim is not planar: no \
@@ -662,6 +722,9 @@ pub fn light_openings(scene: &Scene, index: usize) -> Openings {
                 ));
             }
         }
+    }
+    if unfitted.cells.contains(&true) {
+        result.unfitted = Some(unfitted);
     }
     if result.openings.is_empty() && result.notes.is_empty() {
         result
@@ -783,6 +846,7 @@ pub fn sky_openings(scene: &Scene) -> Openings {
         stopped: 0.0,
         notes,
         complete,
+        unfitted: None,
     }
 }
 
@@ -937,8 +1001,10 @@ pub fn check_light(scene: &Scene, index: usize, found: &Openings, seed: u64) -> 
         .collect();
     let mut rng = Rng::keyed(seed, &[0x504f_5254, index as u64]);
     let (mut through, mut wrong) = (vec![0u32; portals.len()], vec![0u32; portals.len()]);
-    // Per found opening: the rays that leave through it past every portal.
+    // Per found opening: the rays that leave through it past every portal; and those that
+    // leave in a direction with no found opening, past every portal.
     let mut leaks = vec![0u32; openings.len()];
+    let mut unfitted_leaks = 0u32;
     let (mut drawn, mut out) = (0usize, 0usize);
     while drawn < CHECK_MAX_RAYS && out < CHECK_LEAVING_RAYS {
         drawn += 1;
@@ -987,10 +1053,17 @@ pub fn check_light(scene: &Scene, index: usize, found: &Openings, seed: u64) -> 
         if let Some((_, k)) = leaves_at {
             leaks[k] += 1;
             out += 1;
+        } else if let Some(unfitted) = &found.unfitted {
+            // Where it stops (or far along it, if it escapes), as the light's panorama saw it.
+            let end = o + d * t_hit.min(1e3 * scene.geometry.scale());
+            if unfitted.sees(end) {
+                unfitted_leaks += 1;
+                out += 1;
+            }
         }
     }
     let n = drawn.max(1) as f32;
-    let leak = leaks.iter().sum::<u32>() as f32 / n;
+    let leak = (leaks.iter().sum::<u32>() + unfitted_leaks) as f32 / n;
     let leaking = leaking_openings(
         openings.iter().map(|(_, _, o)| *o),
         leaks.iter().map(|&l| l as f32 / n),
@@ -1163,6 +1236,29 @@ impl SourceCheck {
 }
 
 impl Scene {
+    /// The alpha rendering uses for `source` (a light's is the largest of its portals', the
+    /// sky's the largest of its windows'), and whether it was measured (`auto`); `None`
+    /// without portals.
+    pub fn alpha_of(&self, source: Source) -> Option<(f32, bool)> {
+        let auto = |i: usize| self.desc.portals.get(i).is_some_and(|d| d.auto_alpha);
+        let alphas: Vec<(f32, bool)> = match source {
+            Source::Light(light) => self
+                .portals
+                .iter()
+                .filter(|p| p.light == light)
+                .map(|p| (p.alpha, auto(p.desc_index)))
+                .collect(),
+            Source::Environment => self
+                .windows
+                .iter()
+                .map(|w| (w.alpha, auto(w.desc_index)))
+                .collect(),
+        };
+        alphas
+            .into_iter()
+            .reduce(|a, b| if b.0 > a.0 { b } else { a })
+    }
+
     /// Whether some portal's alpha is `auto` and not measured yet.
     pub fn alpha_pending(&self) -> bool {
         self.portals.iter().any(|p| p.alpha_pending) || self.windows.iter().any(|w| w.alpha_pending)
