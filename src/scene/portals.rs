@@ -166,14 +166,20 @@ pub fn find(scene: &Scene) -> Found {
     Found { portals, sources }
 }
 
+/// The most surfaces a ray passes in [`depth`] (its own light's triangles, panes) before it is
+/// taken to go on past them all.
+const MAX_PASSED_SURFACES: usize = 1024;
+
 /// Traces from `origin` along `dir`, through the triangles of light `skip` (a light is not its
 /// own enclosure) and through thin glass (a glazed window or lamp opening is an opening, as
 /// the renderer's rays cross it): the distance to the first other surface, or infinity.
 fn depth(scene: &Scene, skip: Option<usize>, origin: Vec3, dir: Vec3) -> f32 {
     let geometry = &scene.geometry;
     let mut tmin = 0.0;
-    // A ray may pass through a light's surface more than once (a bulb's near and far sides).
-    for _ in 0..8 {
+    // A ray may pass through a light's surface more than once (a bulb's near and far sides, a
+    // filament's coils): each pass moves `tmin` on, so this ends; the bound only guards
+    // against a pathological mesh.
+    for _ in 0..MAX_PASSED_SURFACES {
         let Some(hit) = geometry.bvh.closest_hit(origin, dir, tmin, f32::INFINITY) else {
             return f32::INFINITY;
         };
@@ -188,7 +194,10 @@ fn depth(scene: &Scene, skip: Option<usize>, origin: Vec3, dir: Vec3) -> f32 {
         }
         tmin = hit.t * (1.0 + 1e-5) + 1e-7 * geometry.scale();
     }
-    tmin
+    // Past that many, the ray is taken to go on: were it taken as stopped, light that leaks
+    // would be missed (and `auto` alpha come out low); taken as going on, a leak is at worst
+    // overcounted, which errs towards a larger alpha.
+    f32::INFINITY
 }
 
 /// The depths around a point, one ray per cell.
