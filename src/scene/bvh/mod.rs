@@ -283,12 +283,12 @@ fn any_hit(
 /// The two ray queries a renderer makes. The renderer traces through [`Bvh`]; the benchmark
 /// traces through a recorder, to replay exactly the renderer's rays through raw traversal.
 pub trait Tracer {
-    /// The closest hit of `origin + t·dir` with `t` in `(tmin, tmax)`.
+    /// The closest hit of `origin + t·dir` with `t` in `[tmin, tmax)`.
     fn closest_hit(&self, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> Option<Hit>;
-    /// A primitive on the open segment `origin + t·dir`, `t` in `(tmin, tmax)`, if any, in the
+    /// A primitive on the segment `origin + t·dir`, `t` in `[tmin, tmax)`, if any, in the
     /// tracer's own numbering; `guess` (such a number, or [`NO_OCCLUDER`]) is tested first.
     fn occluder(&self, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32, guess: u32) -> Option<u32>;
-    /// Whether anything lies on the open segment `origin + t·dir`, `t` in `(tmin, tmax)`.
+    /// Whether anything lies on the segment `origin + t·dir`, `t` in `[tmin, tmax)`.
     #[inline(always)]
     fn occluded(&self, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> bool {
         self.occluder(origin, dir, tmin, tmax, NO_OCCLUDER)
@@ -657,7 +657,7 @@ impl Bvh {
         }
     }
 
-    /// The closest hit of `origin + t·dir` with `t` in `(tmin, tmax)`.
+    /// The closest hit of `origin + t·dir` with `t` in `[tmin, tmax)`.
     #[inline(always)]
     pub fn closest_hit(&self, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> Option<Hit> {
         let ray = make_ray(origin, dir, tmin, tmax);
@@ -734,7 +734,7 @@ impl Bvh {
             // SAFETY: a BVH's `isa` is `Isa::detect()`, which is `Avx2` only where the CPU has it.
             #[allow(unsafe_code)]
             Isa::Avx2 => unsafe { wide_closest_avx2(wide, ray, intersect) },
-            _ => wide.closest::<false>(ray, intersect),
+            _ => wide.closest(ray, intersect),
         }
     }
 
@@ -747,7 +747,7 @@ impl Bvh {
             // SAFETY: as in `wide_closest`.
             #[allow(unsafe_code)]
             Isa::Avx2 => unsafe { wide_any_avx2(wide, ray, intersect) },
-            _ => wide.any::<false>(ray, intersect),
+            _ => wide.any(ray, intersect),
         }
     }
 
@@ -797,7 +797,7 @@ impl Bvh {
     }
 
     /// Whether anything lies on each open segment `origins[i] + t·dirs[i]`, `t` in
-    /// `(tmin, tmaxes[i])`, into `blocked[i]`: [`Self::occluded`] of each, traced together as
+    /// `[tmin, tmaxes[i])`, into `blocked[i]`: [`Self::occluded`] of each, traced together as
     /// for [`Self::closest_hits`].
     #[inline(always)]
     pub fn occluded_each(
@@ -833,14 +833,14 @@ impl Bvh {
         }
     }
 
-    /// Whether anything lies on the open segment `origin + t·dir`, `t` in `(tmin, tmax)`.
+    /// Whether anything lies on the segment `origin + t·dir`, `t` in `[tmin, tmax)`.
     #[inline(always)]
     pub fn occluded(&self, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> bool {
         self.occluder(origin, dir, tmin, tmax, NO_OCCLUDER)
             .is_some()
     }
 
-    /// A triangle (BVH order) on the open segment `origin + t·dir`, `t` in `(tmin, tmax)`:
+    /// A triangle (BVH order) on the segment `origin + t·dir`, `t` in `[tmin, tmax)`:
     /// triangle `guess` if it is one, else the first the traversal finds.
     #[inline(always)]
     pub fn occluder(
@@ -935,7 +935,11 @@ fn wide_closest_avx2(
     ray: &Ray,
     intersect: impl FnMut(&Ray, usize) -> f32,
 ) -> Option<(u32, f32)> {
-    wide.closest::<true>(ray, intersect)
+    // SAFETY: compiled for AVX2 and called only where the CPU has it (`Isa::Avx2`).
+    #[allow(unsafe_code)]
+    unsafe {
+        wide.closest_avx2(ray, intersect)
+    }
 }
 
 /// [`WideBvh::any`] compiled for AVX2.
@@ -946,7 +950,11 @@ fn wide_any_avx2(
     ray: &Ray,
     intersect: impl FnMut(&Ray, usize) -> f32,
 ) -> Option<u32> {
-    wide.any::<true>(ray, intersect)
+    // SAFETY: as in `wide_closest_avx2`.
+    #[allow(unsafe_code)]
+    unsafe {
+        wide.any_avx2(ray, intersect)
+    }
 }
 
 #[cfg(test)]
@@ -1306,6 +1314,46 @@ mod tests {
                 "{name}: {hits} hits of {}",
                 rays.len()
             );
+        }
+    }
+
+    /// A ray whose direction has −0.0 components, made directly (`make_ray` turns them into
+    /// +0.0, so the renderer's rays never have them): the layout picks each axis's near face by
+    /// the inverse's sign (−∞ here), so the ray, within the boxes' x and y slabs, meets the
+    /// quad below it; picked by `d < 0` (false for −0.0), the near face was the lower one, its
+    /// distance +∞, and the ray missed every box (issue 40).
+    #[test]
+    fn a_direction_of_negative_zeros_finds_its_hit() {
+        let (a, b, c, d) = (
+            Vec3::new(-1.0, -1.0, 0.0),
+            Vec3::new(1.0, -1.0, 0.0),
+            Vec3::new(1.0, 1.0, 0.0),
+            Vec3::new(-1.0, 1.0, 0.0),
+        );
+        let bvh = Bvh::build(&[[a, b, c], [a, c, d]]).unwrap();
+        let wide = bvh.wide.as_ref().unwrap();
+        let ray = Ray::new(
+            Vec3A::new(0.25, 0.5, 2.0),
+            Vec3A::new(-0.0, -0.0, -1.0),
+            0.0,
+            f32::INFINITY,
+        );
+        let intersect = |r: &Ray, id: usize| bvh.triangles[id].intersect(r);
+        let hit = wide.closest(&ray, intersect);
+        assert!(hit.is_some_and(|(_, t)| (t - 2.0).abs() < 1e-6), "{hit:?}");
+        assert!(wide.any(&ray, intersect).is_some());
+        #[cfg(target_arch = "x86_64")]
+        if Isa::Avx2.available() {
+            // SAFETY: the CPU has AVX2.
+            #[allow(unsafe_code)]
+            let (closest, any) = unsafe {
+                (
+                    wide.closest_avx2(&ray, intersect),
+                    wide.any_avx2(&ray, intersect),
+                )
+            };
+            assert_eq!(closest, hit);
+            assert!(any.is_some());
         }
     }
 

@@ -105,10 +105,37 @@ impl WideBvh {
 
     /// The closest hit along `ray` among the triangles `intersect` tests (it returns the
     /// distance to triangle `id` within the ray's `[tmin, tmax]`, or infinity): the triangle
-    /// and its distance, the least pair (distance, triangle) below `ray.tmax`. Children, leaves
-    /// among them, are visited nearest first, and those entered beyond the best so far skipped.
+    /// and its distance, the least pair (distance, triangle) below `ray.tmax`, so `t` in
+    /// `[tmin, tmax)`. Children, leaves among them, are visited nearest first, and those
+    /// entered beyond the best so far skipped. Scalar node tests: see [`Self::closest_avx2`].
     #[inline(always)]
-    pub fn closest<const AVX2: bool>(
+    pub fn closest(
+        &self,
+        ray: &Ray,
+        intersect: impl FnMut(&Ray, usize) -> f32,
+    ) -> Option<(u32, f32)> {
+        self.walk_closest::<false>(ray, intersect)
+    }
+
+    /// [`Self::closest`] with the node tests in AVX2 registers.
+    ///
+    /// # Safety
+    /// The CPU has AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    #[allow(unsafe_code)]
+    pub unsafe fn closest_avx2(
+        &self,
+        ray: &Ray,
+        intersect: impl FnMut(&Ray, usize) -> f32,
+    ) -> Option<(u32, f32)> {
+        self.walk_closest::<true>(ray, intersect)
+    }
+
+    /// [`Self::closest`]; with `AVX2`, only where the CPU has it (the two public functions
+    /// above hold that contract).
+    #[inline(always)]
+    fn walk_closest<const AVX2: bool>(
         &self,
         ray: &Ray,
         mut intersect: impl FnMut(&Ray, usize) -> f32,
@@ -147,13 +174,35 @@ impl WideBvh {
         found.then_some((best, r.tmax))
     }
 
-    /// A triangle on `ray` (one that `intersect` puts below `ray.tmax`), the first found.
-    /// Inner children are visited farthest first: a shadow ray is most often blocked near the
-    /// light it goes to (by the shade or the fixture around it), not near the point it leaves.
-    /// A leaf's triangles are tested as soon as the leaf is entered (deferring them too tested
-    /// the light's own leaf, at the far end of every shadow ray, first).
+    /// A triangle on `ray` (one that `intersect` puts below `ray.tmax`: `t` in `[tmin,
+    /// tmax)`), the first found. Inner children are visited farthest first: a shadow ray is
+    /// most often blocked near the light it goes to (by the shade or the fixture around it),
+    /// not near the point it leaves. A leaf's triangles are tested as soon as the leaf is
+    /// entered (deferring them too tested the light's own leaf, at the far end of every
+    /// shadow ray, first). Scalar node tests: see [`Self::any_avx2`].
     #[inline(always)]
-    pub fn any<const AVX2: bool>(
+    pub fn any(&self, ray: &Ray, intersect: impl FnMut(&Ray, usize) -> f32) -> Option<u32> {
+        self.walk_any::<false>(ray, intersect)
+    }
+
+    /// [`Self::any`] with the node tests in AVX2 registers.
+    ///
+    /// # Safety
+    /// The CPU has AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    #[allow(unsafe_code)]
+    pub unsafe fn any_avx2(
+        &self,
+        ray: &Ray,
+        intersect: impl FnMut(&Ray, usize) -> f32,
+    ) -> Option<u32> {
+        self.walk_any::<true>(ray, intersect)
+    }
+
+    /// [`Self::any`]; with `AVX2`, only where the CPU has it.
+    #[inline(always)]
+    fn walk_any<const AVX2: bool>(
         &self,
         ray: &Ray,
         mut intersect: impl FnMut(&Ray, usize) -> f32,
@@ -425,13 +474,16 @@ struct Slabs<const AVX2: bool> {
 impl<const AVX2: bool> Slabs<AVX2> {
     #[inline(always)]
     fn new(ray: &Ray) -> Self {
-        let d = ray.direction.to_array();
-        let near = [0, 1, 2].map(|k| if d[k] < 0.0 { 3 + k } else { k });
+        // The exact inverse, infinite for a zero component (obvhs's `safe_inverse` makes it
+        // 1/ε, finite: a ray along a box's face would then leave the box at once).
+        let inv_direction = ray.direction.to_array().map(|c| 1.0 / c);
+        // The near face by the inverse's sign, which is the direction's for every value but
+        // zero: −0.0 has the inverse −∞, so its near face is the upper one (chosen by
+        // `d < 0`, it would be the lower, and a ray inside the slab would miss the box).
+        let near = [0, 1, 2].map(|k| if inv_direction[k] < 0.0 { 3 + k } else { k });
         Slabs {
             origin: ray.origin.to_array(),
-            // The exact inverse, infinite for a zero component (obvhs's `safe_inverse` makes
-            // it 1/ε, finite: a ray along a box's face would then leave the box at once).
-            inv_direction: d.map(|c| 1.0 / c),
+            inv_direction,
             near,
             far: near.map(|row| (row + 3) % 6),
             tmin: ray.tmin,
@@ -447,7 +499,9 @@ impl<const AVX2: bool> Slabs<AVX2> {
     fn hits(&self, node: &Node, tmax: f32) -> (u32, [f32; 8]) {
         #[cfg(target_arch = "x86_64")]
         if AVX2 {
-            // SAFETY: `Slabs<true>` is made only where the CPU has AVX2 (`Isa::Avx2`).
+            // SAFETY: `Slabs<true>` is made only by `walk_closest::<true>` and
+            // `walk_any::<true>`, reached only through `closest_avx2` and `any_avx2`, whose
+            // callers guarantee AVX2.
             #[allow(unsafe_code)]
             return unsafe { self.hits_avx2(node, tmax) };
         }
@@ -614,8 +668,9 @@ impl Lanes {
 }
 
 /// Deep enough for any tree converted here: at most seven children wait per level, and a tree
-/// is at most `MAX_CWBVH_DEPTH` (31) levels deep.
+/// is at most `MAX_CWBVH_DEPTH` (31) levels deep (the build refuses deeper ones).
 const STACK: usize = 256;
+const _: () = assert!(7 * (super::MAX_CWBVH_DEPTH as usize) < STACK);
 
 /// A traversal stack that is not zeroed for every ray (2 KB of stores would cost more than
 /// a shadow ray's node tests).
@@ -638,9 +693,12 @@ impl<T: Copy> Stack<T> {
         self.len
     }
 
-    /// Pushes `entry`; on a tree too deep for the stack (which the build refuses), drops it.
+    /// Pushes `entry`. A tree the build accepts never fills the stack (`STACK`'s assertion);
+    /// were it full, the entry would be dropped rather than written out of bounds, which a
+    /// debug build reports.
     #[inline(always)]
     fn push(&mut self, entry: T) {
+        debug_assert!(self.len < STACK, "a traversal stack of {STACK} is full");
         if let Some(slot) = self.entries.get_mut(self.len) {
             slot.write(entry);
             self.len += 1;
