@@ -259,11 +259,15 @@ pub fn repair_pixels(file: &Path, image: &mut EnvImage) -> Option<String> {
     })
 }
 
-/// `R,G,B` (three non-negative numbers) as a colour, if the text is one.
+/// `R,G,B` (three non-negative numbers) as a colour, if the text is one; numbers separated
+/// by commas that are not three (`1,2`) are a colour given wrong, not a file name.
 pub fn parse_colour(text: &str) -> Option<Result<Vec3, EnvironmentError>> {
     let parts: Vec<&str> = text.split(',').map(str::trim).collect();
-    if parts.len() != 3 || !parts.iter().all(|p| p.parse::<f32>().is_ok()) {
+    if parts.len() < 2 || !parts.iter().all(|p| p.parse::<f32>().is_ok()) {
         return None;
+    }
+    if parts.len() != 3 {
+        return Some(Err(EnvironmentError::BadColour(text.to_owned())));
     }
     let c: Vec<f32> = parts.iter().filter_map(|p| p.parse().ok()).collect();
     let colour = Vec3::new(c[0], c[1], c[2]);

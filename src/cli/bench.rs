@@ -549,7 +549,12 @@ fn convergence(args: &BenchArgs) -> Result<()> {
     println!("|---|---|---:|---:|---:|---:|---:|---:|");
     for name in builtin::NAMES {
         let scene = Scene::open(name)?;
-        let progress = crate::compare::progress_bar(0, "reference {bar:40} {pos}/{len} spp");
+        // Named, and on stderr even when the tables are piped: this takes minutes per scene.
+        eprintln!("{name}: reference, {} spp", args.reference_spp);
+        let progress = crate::compare::progress_bar(
+            0,
+            &format!("{name}: reference {{bar:40}} {{pos}}/{{len}} spp  {{elapsed_precise}}"),
+        );
         let reference = match &cache_dir {
             Some(dir) => cached_reference(dir, &scene, image, 0, budget, &progress)?,
             None => {

@@ -15,10 +15,11 @@ use crate::render::integrator::GlassShadows;
 /// is recorded as they converge. Writes convergence.csv, convergence.svg and summary.md into
 /// --out (with --figure8: one subfolder per scene, plus figure8.csv, figure8.md, figure8.svg).
 #[derive(Args, Debug, Clone)]
+#[command(group(clap::ArgGroup::new("what").required(true).args(["scene", "figure8"])))]
 pub struct CompareArgs {
     /// Built-in name (lampshade, fig8a, fig8b, fig8c, window, windows2, desklamp, livingroom,
     /// panes, pendant) or a .gltf/.glb path.
-    #[arg(long, required_unless_present = "figure8", conflicts_with = "figure8")]
+    #[arg(long, conflicts_with = "figure8")]
     pub scene: Option<String>,
     /// Compare on fig8a, fig8b and fig8c (the thesis's Figure 8).
     #[arg(long)]
@@ -44,6 +45,7 @@ pub struct CompareArgs {
     /// Output folder.
     #[arg(long)]
     pub out: PathBuf,
+    /// Image width.
     #[arg(long, default_value_t = 256)]
     pub width: u32,
     /// Height, seed (the reference uses another, derived from it) and depth.
@@ -172,7 +174,8 @@ pub fn run(args: &CompareArgs) -> Result<()> {
             "{}: {}x{} px, reference",
             scene.name, image.width, image.height
         );
-        let progress = progress_bar(0, "{bar:40} {pos}/{len} {msg}  {elapsed_precise}");
+        // Its length is milliseconds or samples by the budget: the message says the samples.
+        let progress = progress_bar(0, "reference {bar:40} {msg}  {elapsed_precise}");
         let reference = match (&args.reference, &cache_dir) {
             (Some(file), _) => load_reference(file, image.width, image.height)?,
             (None, Some(dir)) => {

@@ -42,8 +42,11 @@ pub enum Command {
     Render(RenderArgs),
     /// Write a built-in scene as .glb, with the portal conventions.
     Export {
+        /// The built-in scene to write (lampshade, fig8a, fig8b, fig8c, window, windows2,
+        /// desklamp, livingroom, panes, pendant).
         #[arg(long)]
         scene: String,
+        /// Where to write it: a .glb file (its environment image, if any, beside it).
         #[arg(long)]
         out: PathBuf,
     },
@@ -115,6 +118,7 @@ pub struct ImageArgs {
     /// Image height (default: from the width and the camera's aspect ratio).
     #[arg(long)]
     pub height: Option<u32>,
+    /// Seed of the random numbers: the same seed, scene and settings give the same image.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
     /// Path vertices after the camera (1 = direct light only, as in the thesis).

@@ -17,7 +17,8 @@ use crate::render::{Isa, film::Film, render_pass, tonemap};
 
 #[derive(Args, Debug, Clone)]
 pub struct RenderArgs {
-    /// Built-in name or a .gltf/.glb path.
+    /// Built-in name (lampshade, fig8a, fig8b, fig8c, window, windows2, desklamp, livingroom,
+    /// panes, pendant) or a .gltf/.glb path.
     #[arg(long, default_value = "lampshade")]
     pub scene: String,
     /// Samples per pixel (default 64 unless --seconds is given).
@@ -26,7 +27,7 @@ pub struct RenderArgs {
     /// Render whole passes until this much time is spent.
     #[arg(long)]
     pub seconds: Option<f64>,
-    /// Image width (default 640).
+    /// Image width.
     #[arg(long, default_value_t = 640)]
     pub width: u32,
     #[command(flatten)]
@@ -34,6 +35,8 @@ pub struct RenderArgs {
     /// Exposure in stops, for PNG output.
     #[arg(long, default_value_t = 0.0)]
     pub exposure: f32,
+    /// The light-sampling strategy (docs/method.md): the light alone, its portals, their
+    /// projection, or antishadow, which picks by the region of each shading point.
     #[arg(long, value_enum, default_value_t = Strategy::Antishadow)]
     pub strategy: Strategy,
     /// How a shading point picks the light it samples: by a tree of the lights' bounds that
@@ -55,6 +58,15 @@ pub struct RenderArgs {
 
 pub fn run(args: &RenderArgs) -> Result<()> {
     anyhow::ensure!(args.width > 0, "--width must be positive");
+    anyhow::ensure!(args.spp != Some(0), "--spp must be at least 1");
+    if let Some(seconds) = args.seconds {
+        anyhow::ensure!(
+            seconds.is_finite() && seconds > 0.0,
+            "--seconds must be positive"
+        );
+    }
+    // Before the render, not after it: a wrong name or folder must not cost a render.
+    tonemap::check_image_path(&args.out)?;
     if let Some(a) = args.alpha {
         anyhow::ensure!((0.0..=1.0).contains(&a), "--alpha {a} is not in [0, 1]");
     }

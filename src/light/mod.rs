@@ -146,7 +146,7 @@ pub enum Mixture {
     /// (Veach's multi-sample model, balance heuristic); elsewhere one sample, as `one-sample`.
     EachShare,
     /// One sample per shading point: the share picked by its probability (the thesis's
-    /// single-sample estimator, as `METHOD.md` specifies it).
+    /// single-sample estimator; docs/method.md §5).
     #[default]
     OneSample,
 }

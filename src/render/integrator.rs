@@ -52,7 +52,7 @@ pub struct RenderSettings {
 )]
 pub enum GlassShadows {
     /// Through it, weighted by its straight-through transmittance: lights and windows behind
-    /// glass are sampled as if the glass were a filter (METHOD.md, *Thin glass*).
+    /// glass are sampled as if the glass were a filter (docs/method.md §6.3).
     #[default]
     Pass,
     /// Stopped, as in Cycles: light reaches the far side of glass along BSDF paths only (whose

@@ -60,6 +60,33 @@ pub fn false_colour(t: f32) -> [u8; 3] {
 
 /// Writes `pixels` (row-major, linear radiance) to `.exr` (linear, 32-bit float) or `.png`
 /// (tone-mapped sRGB), by the file's extension, atomically.
+/// Whether an image can be written to `path`, before anything is rendered for it: its
+/// extension is one [`write_image`] encodes, and its folder exists.
+pub fn check_image_path(path: &Path) -> anyhow::Result<()> {
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
+    if !matches!(ext.as_deref(), Some("exr" | "png")) {
+        anyhow::bail!(
+            "{}: unknown image type (use .exr for linear radiance or .png)",
+            path.display()
+        );
+    }
+    let folder = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    if !folder.is_dir() {
+        anyhow::bail!(
+            "{}: the folder {} does not exist",
+            path.display(),
+            folder.display()
+        );
+    }
+    Ok(())
+}
+
 pub fn write_image(
     path: &Path,
     width: u32,
@@ -90,6 +117,18 @@ pub fn write_image(
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn image_paths_are_checked_before_rendering() {
+        let dir = std::env::temp_dir();
+        assert!(super::check_image_path(&dir.join("a.exr")).is_ok());
+        assert!(super::check_image_path(&dir.join("a.PNG")).is_ok());
+        let jpg = super::check_image_path(&dir.join("a.jpg")).unwrap_err();
+        assert!(jpg.to_string().contains("unknown image type"), "{jpg}");
+        let missing = dir.join("portalview-no-such-folder").join("a.exr");
+        let error = super::check_image_path(&missing).unwrap_err().to_string();
+        assert!(error.contains("does not exist"), "{error}");
+    }
+
     #[test]
     fn table_matches_the_formula_within_one_level() {
         for i in 0..=10_000 {
