@@ -22,16 +22,13 @@ use super::portal::Portal;
 use super::punctual::Lamp;
 use super::sky::windows_alpha;
 use super::tree::{LightTree, TreeInputs};
-use super::{LightSet, Selection, Strategy, Technique, split_share};
+use super::{LightSet, MAX_TERMS, Selection, Strategy, Technique, split_share};
 use crate::sampling::polygon::{
     Cut, Plane, Verts, clip_convex_in, convex_hull_in_plane, merge_close_into,
     sample_polygon_area_ordered,
 };
 use crate::sampling::spherical::SphericalPolygon;
 use crate::sampling::{Distribution1D, pick_by_weight};
-
-/// The most portals one shading point can use for one light.
-pub const MAX_TERMS: usize = 8;
 
 /// One portal's part in the mixture at a shading point.
 #[derive(Clone, Debug)]

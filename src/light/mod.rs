@@ -12,6 +12,10 @@ pub mod sky;
 pub mod tree;
 pub mod window;
 
+/// The most portals one shading point can use for one light (and windows for the sky): the
+/// size of the mixtures' term lists, which the estimator, the sky and the light tree share.
+pub const MAX_TERMS: usize = 8;
+
 use serde::{Deserialize, Serialize};
 
 use antishadow::Region;

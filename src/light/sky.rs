@@ -13,9 +13,8 @@ use arrayvec::ArrayVec;
 use glam::{Vec2, Vec3};
 
 use super::antishadow::Region;
-use super::estimator::MAX_TERMS;
 use super::window::{GuidedBox, Window};
-use super::{LightSet, Strategy, Technique, split_share};
+use super::{LightSet, MAX_TERMS, Strategy, Technique, split_share};
 use crate::sampling::pick_by_weight;
 use crate::sampling::spherical::SphericalPolygon;
 

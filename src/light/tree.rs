@@ -385,7 +385,7 @@ pub struct TreeInputs<'a> {
     /// Whether portals and windows bound their lights (not under the light strategy).
     pub portal_aware: bool,
     /// The portals each area light's estimator uses, and its alpha.
-    pub portals_of: &'a [ArrayVec<usize, { super::estimator::MAX_TERMS }>],
+    pub portals_of: &'a [ArrayVec<usize, { super::MAX_TERMS }>],
     pub alpha_of: &'a [f32],
     /// The environment's alpha through its windows.
     pub environment_alpha: f32,
