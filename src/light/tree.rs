@@ -1005,13 +1005,34 @@ mod tests {
         sample_uniform_sphere(rng.uniform2())
     }
 
-    /// The union of two cones holds every direction of both (directions on each cone's rim).
+    /// The union of two cones holds every direction of both (directions on each cone's rim),
+    /// and is the smallest cone that does: its half-angle is the larger one's where one holds
+    /// the other, else `(θa + θd + θb)/2` (at most π), computed here in f64 from the angles
+    /// (issue 40: the whole sphere held both and passed). So most unions are not the sphere.
     #[test]
     fn cone_union_holds_both_cones() {
         let mut rng = Rng::new(1, 2);
+        let mut spheres = 0;
         for _ in 0..2000 {
             let cones = [0, 1].map(|_| (unit(&mut rng), 1.0 - 2.0 * rng.uniform()));
             let (axis, cos_o) = cone_union(cones[0], cones[1]);
+            let [ta, tb] = cones.map(|(_, c)| f64::from(c).clamp(-1.0, 1.0).acos());
+            let td = f64::from(cones[0].0.dot(cones[1].0))
+                .clamp(-1.0, 1.0)
+                .acos();
+            let smallest = if td + tb <= ta {
+                ta
+            } else if td + ta <= tb {
+                tb
+            } else {
+                (0.5 * (ta + td + tb)).min(std::f64::consts::PI)
+            };
+            assert!(
+                (f64::from(cos_o) - smallest.cos()).abs() < 1e-3,
+                "{cones:?}: cos {cos_o}, the smallest {}",
+                smallest.cos()
+            );
+            spheres += usize::from(cos_o <= -1.0);
             for (w, cos) in cones {
                 // A direction on the cone's rim.
                 let t = w.any_orthonormal_vector();
@@ -1021,6 +1042,7 @@ mod tests {
                 assert!(axis.dot(d) >= cos_o - 1e-4, "{cones:?} → {axis}, {cos_o}");
             }
         }
+        assert!(spheres < 2000 / 4, "{spheres} unions are the whole sphere");
     }
 
     /// The importance is positive wherever some point of the box sends light along a direction
