@@ -879,11 +879,12 @@ fn lambert_radiance(scene: &Scene, x: Vec3) -> f64 {
 /// Every strategy matches Lambert's closed-form irradiance at floor points in every region of
 /// every portal (including points in front of two windows, and two lights picked by power with
 /// MIS across them). Tolerance: 4 standard errors of the estimator, from the sample variance.
-/// Negative case: the same estimates against 1.03 times Lambert's value fail somewhere.
+/// Negative case: for each strategy, its estimates against 1.03 times Lambert's value fail
+/// somewhere (issue 40: detection by any one strategy vouched for all four).
 #[test]
 fn every_strategy_matches_lambert_under_portals() {
     let mut seen = vec![];
-    let mut detects_three_percent = false;
+    let mut detects_three_percent = [false; 4];
     for (name, scene) in lambert_scenes() {
         for (regions, x) in floor_points(&scene) {
             let expected = lambert_radiance(&scene, x);
@@ -895,7 +896,7 @@ fn every_strategy_matches_lambert_under_portals() {
                     "{name} {regions:?} at {x}, {}: {mean} ± {se} vs Lambert {expected}",
                     strategy.name()
                 );
-                detects_three_percent |= (mean - 1.03 * expected).abs() > 4.0 * se;
+                detects_three_percent[k] |= (mean - 1.03 * expected).abs() > 4.0 * se;
             }
             seen.extend(regions);
         }
@@ -908,7 +909,13 @@ fn every_strategy_matches_lambert_under_portals() {
     ] {
         assert!(seen.contains(&r), "no floor point in {}", r.name());
     }
-    assert!(detects_three_percent, "a 3% error is never detected");
+    for (k, strategy) in Strategy::ALL.into_iter().enumerate() {
+        assert!(
+            detects_three_percent[k],
+            "{}: a 3% error is never detected",
+            strategy.name()
+        );
+    }
 }
 
 /// The irradiance at `x` from light 0 by the light technique alone: one sample of the mixture
