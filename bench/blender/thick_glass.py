@@ -80,8 +80,8 @@ RGB channel on the ball and globe), glass/no-glass ratios, z-scores of 4 x 4 roo
 Its default 4096 spp (20-70 s a render on 2 threads) resolves the room to ~0.25%: at 256 spp
 the room's light, all along BSDF paths through the globe, is a few rare paths per pixel.
 
-Sensitivity found with it (portalview with 3ebcc08's thick glass): a ray that refracts must start on its own
-line. Offsetting a refracted ray's origin along -Ng (by 2e-4 of the coordinates, 0.37 mm at
+Sensitivity found with it (portalview with 3ebcc08's thick glass): a ray that refracts must
+start on its own line. Offsetting a refracted ray's origin along -Ng (by 2e-4 of the coordinates, 0.37 mm at
 the globe) moves its line towards the sphere's centre at each crossing, and through a 6 mm
 shell the bulb looked 0.8% larger in radius: its edge pixels +9%, the globe region +1.7% (z
 ~100) and the room, lit mostly by the globe, +1.4-1.7% (z ~7), while the bulb's interior
