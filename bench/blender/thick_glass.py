@@ -81,10 +81,10 @@ Its default 4096 spp (20-70 s a render on 2 threads) resolves the room to ~0.25%
 the room's light, all along BSDF paths through the globe, is a few rare paths per pixel.
 
 Sensitivity found with it (portalview with 3ebcc08's thick glass): a ray that refracts must
-start on its own line. Offsetting a refracted ray's origin along -Ng (by 2e-4 of the coordinates, 0.37 mm at
-the globe) moves its line towards the sphere's centre at each crossing, and through a 6 mm
-shell the bulb looked 0.8% larger in radius: its edge pixels +9%, the globe region +1.7% (z
-~100) and the room, lit mostly by the globe, +1.4-1.7% (z ~7), while the bulb's interior
+start on its own line. Offsetting a refracted ray's origin along -Ng (by 2e-4 of the
+coordinates, 0.37 mm at the globe) moves its line towards the sphere's centre at each
+crossing, and through a 6 mm shell the bulb looked 0.8% larger in radius: its edge pixels
++9%, the globe region +1.7% (z ~100) and the room, lit mostly by the globe, +1.4-1.7% (z ~7), while the bulb's interior
 pixels agreed to 0.15%. The same .glb translated so that the globe sits at the origin (offsets
 3x smaller) gave +0.6% and +0.4%. (A concentric shell keeps a ray's distance from the centre,
 so the bulb's true apparent size is the same as without glass, as Cycles shows.)
@@ -433,7 +433,8 @@ def main():
             report["cycles"]["noglass-plain-d1"] = summarize(
                 "Cycles no glass, max_bounces 0, no trick", plain, masks)
     for d in depths:
-        rg, rn = report["cycles"][f"glass-d{d}"]["regions"], report["cycles"][f"noglass-d{d}"]["regions"]
+        rg = report["cycles"][f"glass-d{d}"]["regions"]
+        rn = report["cycles"][f"noglass-d{d}"]["regions"]
         ratios = {r: [rg[r][0] / rn[r][0], math.hypot(rg[r][1] / rg[r][0], rn[r][1] / rn[r][0])
                       * rg[r][0] / rn[r][0]] for r in rg if rn[r][0] > 0}
         report.setdefault("glass_over_noglass", {})[f"d{d}"] = ratios
