@@ -82,12 +82,12 @@ the room's light, all along BSDF paths through the globe, is a few rare paths pe
 
 Sensitivity found with it (portalview with 3ebcc08's thick glass): a ray that refracts must
 start on its own line. Offsetting a refracted ray's origin along -Ng (by 2e-4 of the
-coordinates, 0.37 mm at the globe) moves its line towards the sphere's centre at each
-crossing, and through a 6 mm shell the bulb looked 0.8% larger in radius: its edge pixels
-+9%, the globe region +1.7% (z ~100) and the room, lit mostly by the globe, +1.4-1.7% (z ~7), while the bulb's interior
-pixels agreed to 0.15%. The same .glb translated so that the globe sits at the origin (offsets
-3x smaller) gave +0.6% and +0.4%. (A concentric shell keeps a ray's distance from the centre,
-so the bulb's true apparent size is the same as without glass, as Cycles shows.)
+coordinates, 0.37 mm at the globe) moves its line towards the sphere's centre at each crossing,
+and through a 6 mm shell the bulb looked 0.8% larger in radius: its edge pixels +9%, the globe
+region +1.7% (z ~100) and the room, lit mostly by the globe, +1.4-1.7% (z ~7), while the bulb's
+interior pixels agreed to 0.15%. The same .glb translated so that the globe sits at the origin
+(offsets 3x smaller) gave +0.6% and +0.4%. (A concentric shell keeps a ray's distance from the
+centre, so the bulb's true apparent size is the same as without glass, as Cycles shows.)
 """
 
 import argparse
