@@ -337,6 +337,18 @@ impl<'a> Integrator<'a> {
         p + n * Self::epsilon(p, scale)
     }
 
+    /// The origin of a ray leaving `p` along `wi` after a specular event: moved along the ray
+    /// itself until it is [`Self::epsilon`] off the surface (normal `ng`), so that the ray's
+    /// line stays the one the event made. Moved along the normal instead, a chain of
+    /// refractions shifts every ray sideways: through a thick glass globe a bulb looked 0.8%
+    /// larger in radius than in Cycles. At grazing angles the step is capped at ten times
+    /// the offset.
+    #[inline(always)]
+    pub fn along(p: Vec3, wi: Vec3, ng: Vec3, scale: f32) -> Vec3 {
+        let cos = wi.dot(ng).abs().max(0.1);
+        p + wi * (Self::epsilon(p, scale) / cos)
+    }
+
     /// How far off a surface at `p` a ray starts, in a scene of size `scale`
     /// ([`crate::scene::Geometry::scale`]): 2e-4 of `p`'s largest coordinate, above the
     /// rounding of a hit point far from the origin, and 2e-4 more, or 2e-5 of the scene's size
@@ -548,11 +560,9 @@ impl<'a> Integrator<'a> {
                             break;
                         }
                         if below {
-                            o = Self::offset(p, -shading.ng, scale);
                             sigma = volume_sigma(material, shading.back);
-                        } else {
-                            o = shading.x;
                         }
+                        o = Self::along(p, wi, shading.ng, scale);
                         beta *= weight;
                         d = wi;
                         // No light sampling here: what the path meets next takes full weight.
