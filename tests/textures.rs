@@ -189,11 +189,24 @@ fn srgb_texels_decode_to_linear() {
         linear,
         Vec4::new(128.0 / 255.0, 0.0, 1.0, 128.0 / 255.0)
     ));
-    // Bilinear filtering decodes before it interpolates: the mean of black and white
-    // texels is 0.5 linear, not the decoded mean code value (0.214).
+    // Bilinear filtering interpolates the encoded values and decodes after, as Cycles does
+    // (issue 40): between black and white texels that is the decoded mid code value (0.214),
+    // not the 0.5 linear that decoding first would give.
     let pair = image(2, 1, |x, _| grey(255 * x as u8));
     let mid = pair.sample(Vec2::splat(0.5), Sampler::default(), Encoding::Srgb);
-    assert!((mid.x - 0.5).abs() < 1e-6);
+    assert!((mid.x - srgb_to_linear(0.5)).abs() < 1e-5, "{}", mid.x);
+    assert!((mid.x - 0.5).abs() > 0.2);
+    // At the texels themselves both orders agree, table or no table.
+    for level in [0u8, 1, 10, 128, 200, 255] {
+        let one = image(1, 1, |_, _| grey(level));
+        let v = one
+            .sample(Vec2::splat(0.5), Sampler::default(), Encoding::Srgb)
+            .x;
+        assert!(
+            (v - srgb_to_linear(level as f32 / 255.0)).abs() < 2e-6,
+            "{level}: {v}"
+        );
+    }
 }
 
 /// A textured horizontal floor `[-2, 2]²` at y = 0 (texture coordinates `((x + 2)/4,
