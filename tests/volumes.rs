@@ -14,9 +14,8 @@ use portalview::asset::environment::EnvironmentDesc;
 use portalview::camera::Camera;
 use portalview::light::Strategy;
 use portalview::render::film::Film;
-use portalview::render::integrator::{Integrator, RenderSettings};
+use portalview::render::integrator::Integrator;
 use portalview::render::render;
-use portalview::sampling::SamplerKind;
 use portalview::scene::Scene;
 
 /// A closed box of half-extents `half` centred at `c`, turned by `rotation`, wound outwards.
@@ -55,16 +54,6 @@ fn thick_glass(ior: f32, attenuation: Vec3, distance: f32) -> MaterialDesc {
     }
 }
 
-fn settings(strategy: Strategy, max_depth: u32, seed: u64) -> RenderSettings {
-    RenderSettings {
-        strategy,
-        max_depth,
-        seed,
-        sampler: SamplerKind::Independent,
-        ..RenderSettings::default()
-    }
-}
-
 /// A glass block in a sky of radiance 1.
 fn block_in_the_sky(glass: MaterialDesc) -> Scene {
     let mut desc = SceneDesc {
@@ -92,7 +81,8 @@ fn a_glass_block_in_a_uniform_sky_is_a_white_furnace() {
     for ior in [1.33f32, 1.5, 2.4] {
         for max_depth in [1, 3] {
             let scene = block_in_the_sky(thick_glass(ior, Vec3::ONE, f32::INFINITY));
-            let integrator = Integrator::new(&scene, settings(Strategy::Antishadow, max_depth, 1));
+            let integrator =
+                Integrator::new(&scene, independent(Strategy::Antishadow, max_depth, 1));
             let (film, stats) = render(&integrator, 24, 24, 16);
             assert_eq!(stats.nonfinite, 0);
             for (i, c) in film.mean().iter().enumerate() {
@@ -103,7 +93,7 @@ fn a_glass_block_in_a_uniform_sky_is_a_white_furnace() {
             }
         }
         let scene = block_in_the_sky(thick_glass(ior, Vec3::splat(0.9), 0.1));
-        let integrator = Integrator::new(&scene, settings(Strategy::Antishadow, 1, 1));
+        let integrator = Integrator::new(&scene, independent(Strategy::Antishadow, 1, 1));
         let (film, _) = render(&integrator, 24, 24, 16);
         let darker = film.mean().iter().filter(|c| c.x < 0.99).count();
         assert!(
@@ -132,7 +122,7 @@ fn camera_rays_through_a_volume_follow_beer_lambert() {
     let faces = cuboid(Vec3::ZERO, Vec3::new(0.4, 0.4, 0.1), Quat::IDENTITY);
     desc.meshes.push(flat("slab", 0, &faces));
     let scene = Scene::from_desc(desc, "slab").unwrap();
-    let integrator = Integrator::new(&scene, settings(Strategy::Antishadow, 1, 2));
+    let integrator = Integrator::new(&scene, independent(Strategy::Antishadow, 1, 2));
     let (film, stats) = render(&integrator, 32, 32, 8);
     assert_eq!(stats.nonfinite, 0);
     // Rays through the central 4 × 4 pixels cross both large faces (±0.4 at 4.9–5.1 m in a
@@ -201,7 +191,7 @@ fn shadow_rays_inside_a_volume_follow_beer_lambert() {
     desc.meshes.push(flat("lights", 2, &lights));
     let camera = desc.camera.unwrap();
     let scene = Scene::from_desc(desc, "medium").unwrap();
-    let integrator = Integrator::new(&scene, settings(Strategy::Light, 1, 3));
+    let integrator = Integrator::new(&scene, independent(Strategy::Light, 1, 3));
     let (width, spp) = (24u32, 256);
     let (film, stats) = render(&integrator, width, width, spp);
     assert_eq!(stats.nonfinite, 0);
@@ -288,11 +278,11 @@ fn glass_of_the_outsides_ior_changes_nothing() {
     let bare = Scene::from_desc(bare, "bare").unwrap();
     let closed = Scene::from_desc(closed, "closed").unwrap();
     let reference = {
-        let integrator = Integrator::new(&bare, settings(Strategy::Light, 2, 4));
+        let integrator = Integrator::new(&bare, independent(Strategy::Light, 2, 4));
         render(&integrator, 48, 36, 256).0
     };
     for strategy in Strategy::ALL {
-        let integrator = Integrator::new(&closed, settings(strategy, 2, 5));
+        let integrator = Integrator::new(&closed, independent(strategy, 2, 5));
         let (image, stats): (Film, _) = render(&integrator, 48, 36, 1024);
         assert_eq!(stats.nonfinite, 0);
         assert_agrees(&format!("{strategy:?}"), &image, &reference, true);
@@ -312,7 +302,7 @@ fn glass_of_the_outsides_ior_changes_nothing() {
 fn a_frosted_glass_block_in_a_uniform_sky_loses_only_what_single_scattering_loses() {
     // The pixels that see the block: those an absorbing smooth block darkens.
     let absorbing = block_in_the_sky(thick_glass(1.5, Vec3::splat(0.5), 0.1));
-    let integrator = Integrator::new(&absorbing, settings(Strategy::Antishadow, 1, 1));
+    let integrator = Integrator::new(&absorbing, independent(Strategy::Antishadow, 1, 1));
     let mask: Vec<bool> = render(&integrator, 24, 24, 16)
         .0
         .mean()
@@ -324,7 +314,7 @@ fn a_frosted_glass_block_in_a_uniform_sky_loses_only_what_single_scattering_lose
             roughness,
             ..thick_glass(1.5, Vec3::ONE, f32::INFINITY)
         });
-        let integrator = Integrator::new(&scene, settings(Strategy::Antishadow, 12, 6));
+        let integrator = Integrator::new(&scene, independent(Strategy::Antishadow, 12, 6));
         let (film, stats) = render(&integrator, 24, 24, 256);
         assert_eq!(stats.nonfinite, 0);
         let on_block: Vec<f64> = film

@@ -6,7 +6,7 @@
 //! as at its own size. Run in release.
 
 mod common;
-use common::{assert_agrees, camera, portal};
+use common::{assert_agrees, camera, independent, portal};
 
 use glam::{Mat4, Vec3};
 use portalview::asset::builtin;
@@ -14,10 +14,10 @@ use portalview::asset::desc::{MaterialDesc, SceneDesc};
 use portalview::asset::environment::{ENVIRONMENT_TARGET, EnvironmentDesc};
 use portalview::light::Strategy;
 use portalview::render::film::Film;
-use portalview::render::integrator::{Integrator, RenderSettings};
+use portalview::render::integrator::Integrator;
 use portalview::render::render;
 use portalview::render::stats::Stats;
-use portalview::sampling::{Rng, Sampler, SamplerKind};
+use portalview::sampling::{Rng, Sampler};
 use portalview::scene::Scene;
 
 /// Half the box's width (x and z in [-H, H]) and its height (y in [0, H]): walls on the
@@ -106,16 +106,6 @@ fn near_edges(gap: f32) -> Vec<(Vec3, Vec3)> {
     points
 }
 
-fn settings(strategy: Strategy, max_depth: u32, seed: u64) -> RenderSettings {
-    RenderSettings {
-        strategy,
-        max_depth,
-        seed,
-        sampler: SamplerKind::Independent,
-        ..RenderSettings::default()
-    }
-}
-
 /// The edge points of `scene` seen from near the box's centre, 64 samples each at three gaps:
 /// those that came back lit, and how many were drawn.
 fn lit_edge_samples(integrator: &Integrator, stats: &mut Stats) -> (Vec<(f32, Vec3, Vec3)>, usize) {
@@ -148,7 +138,7 @@ fn a_closed_box_is_black_inside() {
     let open = Scene::from_desc(box_scene(false), "open box").unwrap();
     for strategy in Strategy::ALL {
         for max_depth in 1..=3 {
-            let control = Integrator::new(&open, settings(strategy, max_depth, 5));
+            let control = Integrator::new(&open, independent(strategy, max_depth, 5));
             let (lit, drawn) = lit_edge_samples(&control, &mut Stats::default());
             assert!(
                 lit.len() * 50 > drawn,
@@ -159,7 +149,7 @@ fn a_closed_box_is_black_inside() {
             let (film, _) = render(&control, 32, 24, 4);
             assert!(film.mean().iter().any(|c| c.max_element() > 0.0));
 
-            let integrator = Integrator::new(&scene, settings(strategy, max_depth, 5));
+            let integrator = Integrator::new(&scene, independent(strategy, max_depth, 5));
             let mut stats = Stats::default();
             let (lit, _) = lit_edge_samples(&integrator, &mut stats);
             assert!(
@@ -202,7 +192,7 @@ fn scaled(mut desc: SceneDesc, s: f32) -> SceneDesc {
 
 fn image(desc: SceneDesc, seed: u64) -> Film {
     let scene = Scene::from_desc(desc, "window").unwrap();
-    let integrator = Integrator::new(&scene, settings(Strategy::Antishadow, 2, seed));
+    let integrator = Integrator::new(&scene, independent(Strategy::Antishadow, 2, seed));
     let (film, stats) = render(&integrator, 48, 36, 64);
     assert_eq!(stats.nonfinite, 0);
     film

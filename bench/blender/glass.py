@@ -387,6 +387,21 @@ def blocks(a, b, m, n=4):
     return out
 
 
+def plain_control(a, out, masks, glossy=True):
+    """A check of the Light Path trick at depth 1: the control without glass rendered with plain
+    max_bounces = 0, no trick (cycles-noglass-plain-d1-{seed}.exr, reused unless --force),
+    whose means must equal the trick's. `glossy` as for depth_limit."""
+    depth_limit(1000, glossy=glossy)
+    plain = []
+    for seed in (1, 2):
+        path = os.path.join(out, f"cycles-noglass-plain-d1-{seed}.exr")
+        if a.force or not os.path.exists(path):
+            render_cycles(path, a.control_spp, seed, threads=a.threads, depth=1,
+                          overrides={"light_sampling_threshold": 0.0, "blur_glossy": 0.0})
+        plain.append(load_exr(path))
+    return summarize("Cycles no glass, max_bounces 0, no trick", plain, masks)
+
+
 def summarize(name, imgs, masks):
     a, b = imgs
     la, lb = luminance(a), luminance(b)
@@ -474,17 +489,7 @@ def main():
             report["cycles"][f"{variant}-d{d}"] = summarize(f"Cycles {variant} d{d} {spp} spp",
                                                             imgs, masks)
         if variant == "noglass" and 1 in depths:
-            # A check of the Light Path trick: plain max_bounces = 0, no trick, the same mean.
-            depth_limit(1000)
-            plain = []
-            for seed in (1, 2):
-                path = os.path.join(out, f"cycles-noglass-plain-d1-{seed}.exr")
-                if a.force or not os.path.exists(path):
-                    render_cycles(path, a.control_spp, seed, threads=a.threads, depth=1,
-                                  overrides={"light_sampling_threshold": 0.0, "blur_glossy": 0.0})
-                plain.append(load_exr(path))
-            report["cycles"]["noglass-plain-d1"] = summarize(
-                "Cycles no glass, max_bounces 0, no trick", plain, masks)
+            report["cycles"]["noglass-plain-d1"] = plain_control(a, out, masks)
     for d in depths:
         rn = report["cycles"][f"noglass-d{d}"]["regions"]
         for variant in ("glass", "thin"):

@@ -107,7 +107,8 @@ from common import (  # noqa: E402
     write_json,
 )
 from glass import (  # noqa: E402
-    BARE_AT, BULB_R, GLOBE_R, camera, compare_pv, depth_limit, mean_se, room, sphere, summarize,
+    BARE_AT, BULB_R, GLOBE_R, camera, compare_pv, depth_limit, mean_se, plain_control, room, sphere,
+    summarize,
 )
 
 GLOBE_AT = (0.35, 0.1, 1.3)
@@ -421,17 +422,7 @@ def main():
             report["cycles"][key]["region_rgb"] = rgb = region_rgb(imgs, masks)
             print_rgb("", {r: v for r, v in rgb.items() if r in ("globe", "ball")})
         if variant == "noglass" and 1 in depths:
-            # The Light Path trick against plain max_bounces = 0 (no trick): the same means.
-            depth_limit(1000, glossy=False)
-            plain = []
-            for seed in (1, 2):
-                path = os.path.join(out, f"cycles-noglass-plain-d1-{seed}.exr")
-                if a.force or not os.path.exists(path):
-                    render_cycles(path, a.control_spp, seed, threads=a.threads, depth=1,
-                                  overrides={"light_sampling_threshold": 0.0, "blur_glossy": 0.0})
-                plain.append(load_exr(path))
-            report["cycles"]["noglass-plain-d1"] = summarize(
-                "Cycles no glass, max_bounces 0, no trick", plain, masks)
+            report["cycles"]["noglass-plain-d1"] = plain_control(a, out, masks, glossy=False)
     for d in depths:
         rg = report["cycles"][f"glass-d{d}"]["regions"]
         rn = report["cycles"][f"noglass-d{d}"]["regions"]

@@ -565,3 +565,19 @@ pub fn scale_statistic(blocks: &[Block]) -> f64 {
         .sum::<f64>()
         / norm
 }
+
+/// Settings for `strategy` at `max_depth` with independent random numbers (block z-scores and
+/// standard errors rest on per-pixel sample variances), seeded.
+pub fn independent(
+    strategy: portalview::light::Strategy,
+    max_depth: u32,
+    seed: u64,
+) -> RenderSettings {
+    RenderSettings {
+        strategy,
+        max_depth,
+        seed,
+        sampler: portalview::sampling::SamplerKind::Independent,
+        ..RenderSettings::default()
+    }
+}

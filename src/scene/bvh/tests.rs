@@ -246,6 +246,19 @@ fn brute_closest(bvh: &Bvh, ray: &Ray) -> Option<(u32, f32)> {
     best
 }
 
+/// Whether two closest-hit answers on `ray` agree: the same distance, bit for bit, and the
+/// same triangle or another at that very distance (a tie may go either way in obvhs's order).
+fn same_answer(bvh: &Bvh, ray: &Ray, a: Option<(u32, f32)>, b: Option<(u32, f32)>) -> bool {
+    match (a, b) {
+        (Some((a, ta)), Some((b, tb))) => {
+            ta.to_bits() == tb.to_bits()
+                && (a == b || bvh.triangles[a as usize].intersect(ray) == ta)
+        }
+        (None, None) => true,
+        _ => false,
+    }
+}
+
 /// Whether the layout's answer `ours` on `ray`, where brute force says `brute`, is only
 /// rounding noise: the triangle test put the brute force's hit outside that triangle's own
 /// box (with the layout's margin), a ray grazing a vertex nearly in the triangle's plane.
@@ -270,16 +283,7 @@ fn compare_with_reference(bvh: &Bvh, rays: &[(Vec3, Vec3, f32)]) -> (u32, u32, u
         let ray = make_ray(origin, dir, 0.0, tmax);
         let ours = bvh.closest_id(Traversal::Wide, &ray);
         let reference = bvh.closest_id(Traversal::Cwbvh, &ray);
-        // A tie (two triangles at one distance) may go either way in obvhs's order.
-        let same = match (ours, reference) {
-            (Some((a, ta)), Some((b, tb))) => {
-                ta.to_bits() == tb.to_bits()
-                    && (a == b || bvh.triangles[a as usize].intersect(&ray) == ta)
-            }
-            (None, None) => true,
-            _ => false,
-        };
-        if !same {
+        if !same_answer(bvh, &ray, ours, reference) {
             differ += 1;
             let brute = brute_closest(bvh, &ray);
             if ours != brute {
@@ -592,15 +596,7 @@ fn layout_answers_as_brute_force_past_a_hit_and_along_the_axes() {
                 let brute = brute_closest(&bvh, &ray);
                 checked += 1;
                 restarted += u32::from(restart > 0);
-                let same = match (ours, brute) {
-                    (Some((a, ta)), Some((b, tb))) => {
-                        ta.to_bits() == tb.to_bits()
-                            && (a == b || bvh.triangles[a as usize].intersect(&ray) == ta)
-                    }
-                    (None, None) => true,
-                    _ => false,
-                };
-                if !same {
+                if !same_answer(&bvh, &ray, ours, brute) {
                     if only_noise(&bvh, &ray, brute) {
                         noise += 1;
                     } else {
