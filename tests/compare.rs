@@ -323,8 +323,9 @@ fn compare_renders_two_light_selections_side_by_side() {
         assert_eq!(rows.len(), 4, "{selection}: {rows:?}");
         for r in &rows {
             let seconds: f64 = r[3].parse().unwrap();
-            // Each run stops at the first pass past 0.1 s; passes here take milliseconds.
-            assert!((0.1..0.2).contains(&seconds), "{selection}: {r:?}");
+            // Each run stops at the first pass past 0.1 s. How far past depends on the
+            // machine's load, not on the code (issue 40: this asked for under 0.2 s).
+            assert!(seconds >= 0.1, "{selection}: {r:?}");
         }
     }
     let cli = Cli::try_parse_from([
@@ -392,7 +393,10 @@ fn compare_renders_glass_passing_and_stopping_side_by_side() {
 }
 
 /// This checks the scheduling, not the strategies' speed: whatever each pass costs, every
-/// strategy's accumulated pass time must end within one pass of the others'.
+/// strategy's accumulated pass time must end within one pass of the others'. The bound is the
+/// longest step measured here (a pass and its bookkeeping), not a share of the clock, so a
+/// loaded machine's stall widens it rather than failing the test (issue 40: it asked for 10%
+/// of the mean).
 #[test]
 fn equal_time_scheduler_shares_time_evenly() {
     let _serial = serial();
@@ -400,20 +404,26 @@ fn equal_time_scheduler_shares_time_evenly() {
     let mut schedule = EqualTime::new(scene, &Strategy::ALL, 32, 24, RenderSettings::default());
     // Ties go by order: the first four steps render each strategy once, in order.
     let never = AtomicBool::new(false);
+    let mut longest_step = 0.0f64;
     for i in 0..4 {
+        let start = std::time::Instant::now();
         assert_eq!(schedule.step(&never).unwrap(), Some(i));
+        longest_step = longest_step.max(start.elapsed().as_secs_f64());
     }
     while schedule.runs().iter().map(|r| r.seconds).sum::<f64>() < 1.0 {
+        let start = std::time::Instant::now();
         schedule.step(&never).unwrap();
+        longest_step = longest_step.max(start.elapsed().as_secs_f64());
     }
     let seconds: Vec<f64> = schedule.runs().iter().map(|r| r.seconds).collect();
-    let mean = seconds.iter().sum::<f64>() / seconds.len() as f64;
-    for (run, &s) in schedule.runs().iter().zip(&seconds) {
-        assert!(
-            (s - mean).abs() < 0.1 * mean,
-            "{}: {s} s of {seconds:?}",
-            run.strategy.name()
-        );
+    let (least, most) = seconds
+        .iter()
+        .fold((f64::INFINITY, 0.0f64), |(a, b), &s| (a.min(s), b.max(s)));
+    assert!(
+        most - least <= longest_step,
+        "{seconds:?}: more than the longest step ({longest_step} s) apart"
+    );
+    for run in schedule.runs() {
         assert!(run.film.spp > 1 && run.stats.samples == run.film.spp as u64);
     }
     // A cancelled pass changes nothing.
