@@ -99,23 +99,29 @@ def parser():
     p = argparse.ArgumentParser()
     p.add_argument("--scene", choices=["pane_room", "globe"], required=True)
     p.add_argument("--out", help="default /tmp/glass-check/<scene>")
-    p.add_argument("--portalview", help="render each .glb with it and compare")
     p.add_argument("--hdri", default="forest.exr")
     p.add_argument("--strength", type=float, default=1.0)
     p.add_argument("--rotation", type=float, default=0.0, help="Mapping Z rotation, degrees")
+    render_args(p, spp=2048, pv_spp=256)
+    return p
+
+
+def render_args(p, spp, pv_spp):
+    """The bulbs', the renders' and the comparison's arguments, shared with thick_glass.py;
+    `spp` and `pv_spp` are the Cycles and portalview samples per pixel per seed."""
+    p.add_argument("--portalview", help="render each .glb with it and compare")
     p.add_argument("--bulb", type=float, default=400.0, help="globe bulb radiance W/(sr m^2)")
     p.add_argument("--bare", type=float, default=200.0, help="bare bulb radiance")
     p.add_argument("--depths", default="1,2", help="portalview --max-depth values to render")
     p.add_argument("--width", type=int, default=128)
     p.add_argument("--height", type=int, default=96)
-    p.add_argument("--spp", type=int, default=2048, help="Cycles samples per pixel per seed")
+    p.add_argument("--spp", type=int, default=spp, help="Cycles samples per pixel per seed")
     p.add_argument("--control-spp", type=int, default=1024, help="the same without glass")
     p.add_argument("--threads", type=int, default=2, help="Cycles threads")
-    p.add_argument("--pv-spp", type=int, default=256)
+    p.add_argument("--pv-spp", type=int, default=pv_spp)
     p.add_argument("--pv-threads", type=int, default=2, help="RAYON_NUM_THREADS for portalview")
     p.add_argument("--pv-args", default="", help="extra portalview render arguments")
     p.add_argument("--force", action="store_true", help="render Cycles again")
-    return p
 
 
 def args():

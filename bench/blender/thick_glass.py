@@ -107,8 +107,8 @@ from common import (  # noqa: E402
     write_json,
 )
 from glass import (  # noqa: E402
-    BARE_AT, BULB_R, GLOBE_R, camera, compare_pv, depth_limit, mean_se, plain_control, room, sphere,
-    summarize,
+    BARE_AT, BULB_R, GLOBE_R, camera, compare_pv, depth_limit, mean_se, plain_control, render_args,
+    room, sphere, summarize,
 )
 
 GLOBE_AT = (0.35, 0.1, 1.3)
@@ -140,24 +140,12 @@ def cycles_bounces(depth):
 def parser():
     p = argparse.ArgumentParser()
     p.add_argument("--out", default="/tmp/glass-check/thick")
-    p.add_argument("--portalview", help="render each .glb with it and compare")
-    p.add_argument("--bulb", type=float, default=400.0, help="globe bulb radiance W/(sr m^2)")
-    p.add_argument("--bare", type=float, default=200.0, help="bare bulb radiance")
+    render_args(p, spp=4096, pv_spp=4096)
     p.add_argument("--bare-radius", type=float, default=BULB_R, help="bare bulb radius, m")
     p.add_argument("--attenuation-color", default="0.6,0.8,0.9",
                    help="the ball's Volume Absorption Color (glTF attenuationColor)")
     p.add_argument("--attenuation-distance", type=float, default=0.2,
                    help="1 / the ball's Volume Absorption Density (glTF attenuationDistance), m")
-    p.add_argument("--depths", default="1,2", help="portalview --max-depth values to render")
-    p.add_argument("--width", type=int, default=128)
-    p.add_argument("--height", type=int, default=96)
-    p.add_argument("--spp", type=int, default=4096, help="Cycles samples per pixel per seed")
-    p.add_argument("--control-spp", type=int, default=1024, help="the same without glass")
-    p.add_argument("--threads", type=int, default=2, help="Cycles threads")
-    p.add_argument("--pv-spp", type=int, default=4096)
-    p.add_argument("--pv-threads", type=int, default=2, help="RAYON_NUM_THREADS for portalview")
-    p.add_argument("--pv-args", default="", help="extra portalview render arguments")
-    p.add_argument("--force", action="store_true", help="render Cycles again")
     p.add_argument("--preview", type=int, metavar="SPP",
                    help="only a 4x-size Cycles render (depth 3) of the glass scene, preview.png")
     return p
