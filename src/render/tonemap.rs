@@ -58,21 +58,32 @@ pub fn false_colour(t: f32) -> [u8; 3] {
     [0, 1, 2].map(|k| ((a[k] + (b[k] - a[k]) * f) * 255.0 + 0.5) as u8)
 }
 
-/// Writes `pixels` (row-major, linear radiance) to `.exr` (linear, 32-bit float) or `.png`
-/// (tone-mapped sRGB), by the file's extension, atomically.
-/// Whether an image can be written to `path`, before anything is rendered for it: its
-/// extension is one [`write_image`] encodes, and its folder exists.
-pub fn check_image_path(path: &Path) -> anyhow::Result<()> {
+/// The image types [`write_image`] encodes.
+enum ImageKind {
+    Exr,
+    Png,
+}
+
+/// The type of image `path` names by its extension, or an error naming the file.
+fn image_kind(path: &Path) -> anyhow::Result<ImageKind> {
     let ext = path
         .extension()
         .and_then(|e| e.to_str())
         .map(str::to_ascii_lowercase);
-    if !matches!(ext.as_deref(), Some("exr" | "png")) {
-        anyhow::bail!(
+    match ext.as_deref() {
+        Some("exr") => Ok(ImageKind::Exr),
+        Some("png") => Ok(ImageKind::Png),
+        _ => anyhow::bail!(
             "{}: unknown image type (use .exr for linear radiance or .png)",
             path.display()
-        );
+        ),
     }
+}
+
+/// Whether an image can be written to `path`, before anything is rendered for it: its
+/// extension is one [`write_image`] encodes, and its folder exists.
+pub fn check_image_path(path: &Path) -> anyhow::Result<()> {
+    image_kind(path)?;
     let folder = match path.parent() {
         Some(p) if !p.as_os_str().is_empty() => p,
         _ => Path::new("."),
@@ -87,6 +98,8 @@ pub fn check_image_path(path: &Path) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// Writes `pixels` (row-major, linear radiance) to `.exr` (linear, 32-bit float) or `.png`
+/// (tone-mapped sRGB), by the file's extension, atomically.
 pub fn write_image(
     path: &Path,
     width: u32,
@@ -94,22 +107,14 @@ pub fn write_image(
     pixels: &[Vec3],
     exposure: f32,
 ) -> anyhow::Result<()> {
-    let ext = path
-        .extension()
-        .and_then(|e| e.to_str())
-        .map(str::to_ascii_lowercase);
-    let bytes = match ext.as_deref() {
-        Some("exr") => crate::io::exr_bytes(width, height, pixels)
+    let bytes = match image_kind(path)? {
+        ImageKind::Exr => crate::io::exr_bytes(width, height, pixels)
             .map_err(|e| anyhow::anyhow!("{}: cannot encode EXR: {e}", path.display()))?,
-        Some("png") => {
+        ImageKind::Png => {
             let rgb8: Vec<u8> = pixels.iter().flat_map(|&c| to_srgb8(c, exposure)).collect();
             crate::io::png_bytes(width, height, &rgb8)
                 .map_err(|e| anyhow::anyhow!("{}: cannot encode PNG: {e}", path.display()))?
         }
-        _ => anyhow::bail!(
-            "{}: unknown image type (use .exr for linear radiance or .png)",
-            path.display()
-        ),
     };
     crate::io::write_atomic(path, &bytes)
         .map_err(|e| anyhow::anyhow!("{}: cannot write: {e}", path.display()))
