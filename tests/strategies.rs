@@ -315,7 +315,7 @@ fn sampled_pdf_equals_evaluated_pdf() {
                     Technique::Light if mesh => s.hit,
                     _ => sampler.light_hit(scene, ctx.light, x, s.wi),
                 };
-                let p_light = sampler.light_pdf(scene, ctx.light, s.wi, hit);
+                let p_light = sampler.light_technique_pdf(scene, &ctx, s.wi, hit);
                 let evaluated: Vec<f32> = match s.technique {
                     Technique::Light => vec![p_light],
                     _ => ctx

@@ -492,6 +492,7 @@ fn render_image_with(
             mixture,
             selection: Default::default(),
             glass: Default::default(),
+            bounces: Default::default(),
         },
     );
     let (film, stats) = render(&integrator, 48, 36, spp);

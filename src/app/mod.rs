@@ -31,7 +31,7 @@ use crate::asset::desc::PortalDesc;
 use crate::asset::environment::{EnvironmentDesc, EnvironmentOverrides};
 use crate::camera::Camera;
 use crate::light::{Mixture, Selection, Strategy};
-use crate::render::integrator::{GlassShadows, RenderSettings};
+use crate::render::integrator::{GlassShadows, GuideBounces, RenderSettings};
 use crate::render::worker::{Frame, RenderHandle, RenderRequest};
 use crate::sampling::SamplerKind;
 use crate::scene::Scene;
@@ -237,6 +237,7 @@ impl PortalViewApp {
         settings.mixture = options.mixture.unwrap_or(settings.mixture);
         settings.selection = options.selection.unwrap_or(settings.selection);
         settings.glass = options.glass.unwrap_or(settings.glass);
+        settings.bounces = options.bounces.unwrap_or(settings.bounces);
         settings.show_volumes |= options.volumes;
         let repaint = ctx.clone();
         let renderer = RenderHandle::spawn(0, Box::new(move || repaint.request_repaint()))?;
@@ -368,6 +369,7 @@ impl PortalViewApp {
             mixture: self.settings.mixture,
             selection: self.settings.selection,
             glass: self.settings.glass,
+            bounces: self.settings.bounces,
         }
     }
 
@@ -828,6 +830,7 @@ impl PortalViewApp {
                     settings.mixture,
                     settings.selection,
                     settings.glass,
+                    settings.bounces,
                 ),
             );
             self.compare.show(
@@ -874,6 +877,7 @@ pub struct ViewOptions {
     pub mixture: Option<Mixture>,
     pub selection: Option<Selection>,
     pub glass: Option<GlassShadows>,
+    pub bounces: Option<GuideBounces>,
     /// Replaces the start-up scene's environment (the command line's `--environment…`).
     pub environment: EnvironmentOverrides,
 }

@@ -3,7 +3,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::light::{Mixture, Selection, Strategy};
-use crate::render::integrator::GlassShadows;
+use crate::render::integrator::{GlassShadows, GuideBounces};
 use crate::sampling::SamplerKind;
 
 use super::compare_view::CompareViewSettings;
@@ -26,6 +26,8 @@ pub struct ViewerSettings {
     pub selection: Selection,
     /// What shadow rays do at thin glass.
     pub glass: GlassShadows,
+    /// Whether paths continue through the portals as well as by the BSDF.
+    pub bounces: GuideBounces,
     /// Exposure in stops.
     pub exposure: f32,
     /// Show log-luminance in false colour instead of the tone-mapped image.
@@ -60,6 +62,7 @@ impl Default for ViewerSettings {
             mixture: Mixture::default(),
             selection: Selection::default(),
             glass: GlassShadows::default(),
+            bounces: GuideBounces::default(),
             exposure: 0.0,
             false_colour: false,
             resolution_scale: 0.5,

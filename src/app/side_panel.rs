@@ -7,7 +7,7 @@ use super::overlay::{self, OverlayKind};
 use super::{Command, PortalViewApp, ViewMode, ViewerSettings};
 use crate::light::antishadow::Region;
 use crate::light::{Mixture, Selection, Strategy, Technique};
-use crate::render::integrator::GlassShadows;
+use crate::render::integrator::{GlassShadows, GuideBounces};
 use crate::render::primary::SPREAD_SHARE;
 use crate::sampling::SamplerKind;
 
@@ -53,6 +53,7 @@ impl PortalViewApp {
             mixture,
             selection,
             glass,
+            bounces,
             exposure,
             false_colour,
             resolution_scale,
@@ -131,6 +132,20 @@ impl PortalViewApp {
             );
             for g in GlassShadows::ALL {
                 if ui.selectable_value(glass, g, g.label()).changed() {
+                    commands.push(Command::Restart);
+                }
+            }
+        });
+        ui.horizontal(|ui| {
+            ui.label("guide bounces").on_hover_text(
+                "Where a path bounces (max depth 2 and more): on draws the next direction \
+                 through the portals of lamps and cans (and windows with something outside) \
+                 as well as from the surface's BSDF, so the light a shade reflects inside before \
+                 it leaves is found without fireflies. off: from the BSDF alone. The same \
+                 image either way.",
+            );
+            for b in GuideBounces::ALL {
+                if ui.selectable_value(bounces, b, b.label()).changed() {
                     commands.push(Command::Restart);
                 }
             }

@@ -9,7 +9,7 @@ use super::ImageArgs;
 use crate::compare::report::sci;
 use crate::compare::*;
 use crate::light::{Selection, Strategy};
-use crate::render::integrator::GlassShadows;
+use crate::render::integrator::{GlassShadows, GuideBounces};
 
 /// `portalview compare`: every strategy gets the same pass render time; MSE against a reference
 /// is recorded as they converge. Writes convergence.csv, convergence.svg and summary.md into
@@ -38,6 +38,13 @@ pub struct CompareArgs {
     /// printed per strategy. Stop is what Cycles does.
     #[arg(long, value_enum, value_delimiter = ',', default_values_t = [GlassShadows::Pass])]
     pub glass_shadows: Vec<GlassShadows>,
+    /// Whether paths continue through the portals as well as by the BSDF (guided bounces,
+    /// docs/method.md §12), comma-separated: with two (`on,off`), every strategy is rendered
+    /// with each, side by side at equal time, each one's files in --out/guide-on and
+    /// --out/guide-off, and the efficiency of the second over the first printed per strategy.
+    /// Matters from --max-depth 2 on (a bounce must lead to a vertex that gathers light).
+    #[arg(long, value_enum, value_delimiter = ',', default_values_t = [GuideBounces::On])]
+    pub guide_bounces: Vec<GuideBounces>,
     /// Pass render time per strategy, in seconds (the whole run takes this times the number
     /// of strategies, plus the reference).
     #[arg(long)]
@@ -103,13 +110,22 @@ pub fn run(args: &CompareArgs) -> Result<()> {
         "--light-selection lists none"
     );
     anyhow::ensure!(!args.glass_shadows.is_empty(), "--glass-shadows lists none");
+    anyhow::ensure!(!args.guide_bounces.is_empty(), "--guide-bounces lists none");
+    let varied = [
+        args.light_selection.len(),
+        args.glass_shadows.len(),
+        args.guide_bounces.len(),
+    ]
+    .iter()
+    .filter(|&&n| n > 1)
+    .count();
     anyhow::ensure!(
-        !args.figure8 || (args.light_selection.len() == 1 && args.glass_shadows.len() == 1),
-        "--figure8 takes one --light-selection and one --glass-shadows"
+        !args.figure8 || varied == 0,
+        "--figure8 takes one --light-selection, one --glass-shadows and one --guide-bounces"
     );
     anyhow::ensure!(
-        args.light_selection.len() == 1 || args.glass_shadows.len() == 1,
-        "compare one of --light-selection and --glass-shadows at a time"
+        varied <= 1,
+        "compare one of --light-selection, --glass-shadows and --guide-bounces at a time"
     );
     for (i, s) in args.light_selection.iter().enumerate() {
         anyhow::ensure!(
@@ -122,6 +138,13 @@ pub fn run(args: &CompareArgs) -> Result<()> {
         anyhow::ensure!(
             !args.glass_shadows[..i].contains(g),
             "--glass-shadows lists {} twice",
+            g.label()
+        );
+    }
+    for (i, g) in args.guide_bounces.iter().enumerate() {
+        anyhow::ensure!(
+            !args.guide_bounces[..i].contains(g),
+            "--guide-bounces lists {} twice",
             g.label()
         );
     }
@@ -237,7 +260,11 @@ pub fn run(args: &CompareArgs) -> Result<()> {
         } else {
             args.out.clone()
         };
-        let variants = Variant::all(&args.light_selection, &args.glass_shadows);
+        let variants = Variant::all(
+            &args.light_selection,
+            &args.glass_shadows,
+            &args.guide_bounces,
+        );
         // Per variant, its folder and its runs (one per seed).
         let dirs: Vec<PathBuf> = variants
             .iter()
@@ -259,6 +286,7 @@ pub fn run(args: &CompareArgs) -> Result<()> {
                     mixture: args.image.mixture,
                     selection: v.selection,
                     glass: v.glass,
+                    bounces: v.bounces,
                     alpha: args.alpha,
                 })
                 .collect();
@@ -306,42 +334,66 @@ pub fn run(args: &CompareArgs) -> Result<()> {
     Ok(())
 }
 
-/// One of the configurations `compare` renders side by side: a light selection and what
-/// shadow rays do at glass (at most one of the two varies).
+/// One of the configurations `compare` renders side by side: a light selection, what shadow
+/// rays do at glass and whether bounces are guided (at most one of the three varies).
 #[derive(Clone, Copy, Debug)]
 struct Variant {
     selection: Selection,
     glass: GlassShadows,
-    /// Which of the two varies.
-    by_glass: bool,
+    bounces: GuideBounces,
+    /// Which of the three varies.
+    varies: Varies,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Varies {
+    Selection,
+    Glass,
+    Bounces,
 }
 
 impl Variant {
-    fn all(selections: &[Selection], glass: &[GlassShadows]) -> Vec<Variant> {
-        let by_glass = glass.len() > 1;
-        selections
-            .iter()
-            .flat_map(|&selection| {
-                glass.iter().map(move |&glass| Variant {
-                    selection,
-                    glass,
-                    by_glass,
-                })
-            })
-            .collect()
+    fn all(
+        selections: &[Selection],
+        glass: &[GlassShadows],
+        bounces: &[GuideBounces],
+    ) -> Vec<Variant> {
+        let varies = if glass.len() > 1 {
+            Varies::Glass
+        } else if bounces.len() > 1 {
+            Varies::Bounces
+        } else {
+            Varies::Selection
+        };
+        let mut all = Vec::new();
+        for &selection in selections {
+            for &glass in glass {
+                for &bounces in bounces {
+                    all.push(Variant {
+                        selection,
+                        glass,
+                        bounces,
+                        varies,
+                    });
+                }
+            }
+        }
+        all
     }
 
     fn folder(&self) -> String {
-        match self.by_glass {
-            true => format!("glass-{}", self.glass.label()),
-            false => self.selection.name().to_owned(),
+        match self.varies {
+            Varies::Glass => format!("glass-{}", self.glass.label()),
+            Varies::Bounces => format!("guide-{}", self.bounces.label()),
+            Varies::Selection => self.selection.name().to_owned(),
         }
     }
 
     fn label(&self) -> String {
-        match self.by_glass {
-            true => format!("shadow rays at glass {}", self.glass.label()),
-            false => format!("light selection {}", self.selection.name()),
+        match self.varies {
+            Varies::Glass => format!("shadow rays at glass {}", self.glass.label()),
+            Varies::Bounces => format!("guided bounces {}", self.bounces.label()),
+            Varies::Selection => format!("light selection {}", self.selection.name()),
         }
     }
 }

@@ -11,7 +11,7 @@ use crate::compare::progress_bar;
 use crate::light::Technique;
 use crate::light::antishadow::Region;
 use crate::light::{Selection, Strategy};
-use crate::render::integrator::{GlassShadows, Integrator, RenderSettings};
+use crate::render::integrator::{GlassShadows, GuideBounces, Integrator, RenderSettings};
 use crate::render::stats::Stats;
 use crate::render::{Isa, film::Film, render_pass, tonemap};
 
@@ -48,6 +48,11 @@ pub struct RenderArgs {
     /// BSDF paths: the same image, noisier).
     #[arg(long, value_enum, default_value_t = GlassShadows::default())]
     pub glass_shadows: GlassShadows,
+    /// Whether paths continue through the portals as well as by the BSDF (guided bounces,
+    /// docs/method.md §12): on finds the light bounced inside a lamp's shade; off is BSDF
+    /// sampling alone. Matters from --max-depth 2 on.
+    #[arg(long, value_enum, default_value_t = GuideBounces::default())]
+    pub guide_bounces: GuideBounces,
     /// Replace every portal's alpha (probability of sampling the light itself).
     #[arg(long)]
     pub alpha: Option<f32>,
@@ -86,6 +91,7 @@ pub fn run(args: &RenderArgs) -> Result<()> {
         mixture: args.image.mixture,
         selection: args.light_selection,
         glass: args.glass_shadows,
+        bounces: args.guide_bounces,
     };
     let integrator = Integrator::new(&scene, settings);
     let (film, stats, elapsed) = match args.seconds {

@@ -6,7 +6,7 @@ use super::EnvironmentArgs;
 use crate::app::ViewOptions;
 use crate::app::overlay::OverlayKind;
 use crate::light::{Mixture, Selection, Strategy};
-use crate::render::integrator::GlassShadows;
+use crate::render::integrator::{GlassShadows, GuideBounces};
 use crate::sampling::SamplerKind;
 
 #[derive(Args, Debug, Clone, Default)]
@@ -40,6 +40,9 @@ pub struct ViewArgs {
     /// used last).
     #[arg(long, value_enum)]
     pub glass_shadows: Option<GlassShadows>,
+    /// Whether bounces are guided through the portals (else as used last).
+    #[arg(long, value_enum)]
+    pub guide_bounces: Option<GuideBounces>,
     /// The start-up scene's sky, as for `render` (replaces the scene's).
     #[command(flatten)]
     pub environment: EnvironmentArgs,
@@ -57,6 +60,7 @@ impl From<ViewArgs> for ViewOptions {
             mixture: a.mixture,
             selection: a.light_selection,
             glass: a.glass_shadows,
+            bounces: a.guide_bounces,
             environment: (&a.environment).into(),
         }
     }

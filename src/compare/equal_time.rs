@@ -9,7 +9,7 @@ use super::metrics::{mse, mse_above_floor, relmse};
 use super::reference::{ImageSpec, Reference, ReferenceInfo, ReferenceOrigin};
 use crate::light::{Mixture, Selection, Strategy};
 use crate::render::film::Film;
-use crate::render::integrator::{GlassShadows, Integrator, RenderSettings};
+use crate::render::integrator::{GlassShadows, GuideBounces, Integrator, RenderSettings};
 use crate::render::stats::Stats;
 use crate::render::{Cancelled, render_pass};
 use crate::sampling::SamplerKind;
@@ -144,6 +144,8 @@ pub struct CompareSettings {
     pub selection: Selection,
     /// What the compared renders' shadow rays do at thin glass.
     pub glass: GlassShadows,
+    /// Whether the compared renders guide their bounces through the portals.
+    pub bounces: GuideBounces,
     /// Replaces every portal's and window's alpha in the compared renders (not in the
     /// reference's, whose converged image does not depend on it).
     pub alpha: Option<f32>,
@@ -231,6 +233,7 @@ pub fn compare_each(
                 mixture: settings.mixture,
                 selection: settings.selection,
                 glass: settings.glass,
+                bounces: settings.bounces,
             };
             EqualTime::new(
                 scene.clone(),

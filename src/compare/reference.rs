@@ -12,7 +12,7 @@ use std::time::Instant;
 use super::metrics::Convergence;
 use crate::light::{Mixture, Selection, Strategy};
 use crate::render::film::Film;
-use crate::render::integrator::{GlassShadows, Integrator, RenderSettings};
+use crate::render::integrator::{GlassShadows, GuideBounces, Integrator, RenderSettings};
 use crate::render::{Cancelled, render_pass, tonemap};
 use crate::sampling::SamplerKind;
 use crate::scene::Scene;
@@ -268,6 +268,9 @@ pub fn render_reference(
         // Shadow rays through thin glass: the same image as stopping them (tests/glass.rs),
         // far less noise behind panes.
         glass: GlassShadows::Pass,
+        // Bounces through the portals: the same image as BSDF sampling alone
+        // (tests/bounces.rs), without the fireflies of light bounced inside shades.
+        bounces: GuideBounces::On,
     };
     let integrator = Integrator::new(scene, settings);
     let mut film = Film::new(image.width, image.height);

@@ -633,6 +633,7 @@ mod tests {
                 mixture: Default::default(),
                 selection: Default::default(),
                 glass: Default::default(),
+                bounces: Default::default(),
                 alpha: None,
             },
             reference_info: Some(ReferenceInfo {

@@ -17,7 +17,7 @@ use crate::compare::{
 };
 use crate::light::{Mixture, Selection, Strategy};
 use crate::render::Cancelled;
-use crate::render::integrator::{GlassShadows, RenderSettings};
+use crate::render::integrator::{GlassShadows, GuideBounces, RenderSettings};
 use crate::render::shell::{Outbox, Work, WorkerHandle};
 use crate::sampling::SamplerKind;
 use crate::scene::Scene;
@@ -56,6 +56,8 @@ pub struct CompareRequest {
     pub selection: Selection,
     /// What the compared renders' shadow rays do at thin glass.
     pub glass: GlassShadows,
+    /// Whether the compared renders guide their bounces through the portals.
+    pub bounces: GuideBounces,
     pub reference: ReferenceSource,
     /// A reference the UI already holds: used instead of the source when it fits (same
     /// scene, camera, size and depth, and at least the budget; or the same file).
@@ -344,6 +346,7 @@ impl CompareWork {
                         mixture: request.mixture,
                         selection: request.selection,
                         glass: request.glass,
+                        bounces: request.bounces,
                     };
                     let schedule = EqualTime::new(
                         request.scene.clone(),

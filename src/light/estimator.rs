@@ -87,6 +87,12 @@ pub struct LightContext {
     /// The region of `x` for the portal with the largest weight (Behind if it is in front of
     /// none; Outside if outside all), for statistics and overlays.
     pub region: Region,
+    /// Whether the light technique samples the light by solid angle (`enclosure`) rather than
+    /// by area: antishadow's choice behind every portal of a polygon light, inside its shade,
+    /// where area sampling's `d² / cos` explodes a few centimetres from the emitter.
+    pub by_solid_angle: bool,
+    /// The light polygon seen from `x`, where `by_solid_angle`.
+    enclosure: SphericalPolygon,
 }
 
 impl LightContext {
@@ -106,6 +112,8 @@ impl LightContext {
             slots: ArrayVec::new(),
             count: 0,
             region: Region::Behind,
+            by_solid_angle: false,
+            enclosure: SphericalPolygon::empty(),
         }
     }
 
@@ -364,6 +372,7 @@ impl LightSampler {
         ctx.has_portals = self.strategy != Strategy::Light && !self.portals_of[light].is_empty();
         ctx.count = 0;
         ctx.region = Region::Behind;
+        ctx.by_solid_angle = false;
         if !ctx.has_portals {
             return;
         }
@@ -381,6 +390,16 @@ impl LightSampler {
             if let Some(technique) = self.strategy.technique(region) {
                 candidates.push((j, region, technique));
             }
+        }
+        if !ctx.uses_portals {
+            // Behind every portal: inside the enclosure, antishadow samples a polygon light
+            // by its solid angle (none from a point in its plane: then by area).
+            if self.strategy == Strategy::Antishadow
+                && let Some(polygon) = &scene.lights()[light].polygon
+            {
+                ctx.by_solid_angle = ctx.enclosure.set(x, polygon.vertices());
+            }
+            return;
         }
         // One light-technique term (the antiumbra of one portal): weight 1, and the mixture
         // is light sampling; the general loop below would give the same term. Kept apart
@@ -545,6 +564,10 @@ impl LightSampler {
             // the heaviest other term's portal comes from the lowest `u.x`. Where the portal
             // is the only opening that part is occluded, and its zeros are then as evenly
             // counted as stratified `u.x` allows (`docs/method.md` §5). Same density.
+            _ if ctx.by_solid_angle => {
+                let (wi, pdf) = ctx.enclosure.sample(u)?;
+                (wi, self.light_hit(scene, ctx.light, x, wi), pdf)
+            }
             _ => match (
                 &light.polygon,
                 ordered
@@ -619,7 +642,7 @@ impl LightSampler {
         wi: Vec3,
         hit: Option<(LightPoint, f32)>,
     ) -> f32 {
-        let p_light = self.light_pdf(scene, ctx.light, wi, hit);
+        let p_light = self.light_technique_pdf(scene, ctx, wi, hit);
         if ctx.light_only {
             return p_light;
         }
@@ -644,7 +667,24 @@ impl LightSampler {
         self.pdf(scene, ctx, wi, hit) + ctx.light_share().0 * beyond
     }
 
-    /// The light technique's pdf `p_L(wi)` for a direction whose light hit is `hit`.
+    /// The light technique's pdf at the context's point for a direction whose light hit is
+    /// `hit`: [`Self::light_pdf`], or by solid angle where the context says so.
+    #[inline(always)]
+    pub fn light_technique_pdf(
+        &self,
+        scene: &impl LightSet,
+        ctx: &LightContext,
+        wi: Vec3,
+        hit: Option<(LightPoint, f32)>,
+    ) -> f32 {
+        if ctx.by_solid_angle {
+            return hit.map_or(0.0, |_| ctx.enclosure.pdf(wi));
+        }
+        self.light_pdf(scene, ctx.light, wi, hit)
+    }
+
+    /// The light technique's area-sampling pdf `p_L(wi)` for a direction whose light hit is
+    /// `hit`.
     #[inline(always)]
     pub fn light_pdf(
         &self,

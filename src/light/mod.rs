@@ -2,6 +2,7 @@
 
 pub mod antishadow;
 pub mod area;
+pub mod bounce;
 pub mod environment;
 pub mod estimator;
 pub mod guided;

@@ -425,6 +425,20 @@ impl Material {
         self.lobe_weights(cos_o).0
     }
 
+    /// The probability that [`Self::sample_direction`] draws the diffuse lobe at `wo`: the part
+    /// of the sampler whose broad directions guided continuation may share (0 for a dielectric
+    /// boundary and below the surface, 1 for a plain diffuse surface).
+    pub fn diffuse_probability(&self, cos_o: f32) -> f32 {
+        if self.eta > 0.0 || cos_o <= 0.0 {
+            return 0.0;
+        }
+        if !self.has_specular() && !self.transmits_rough() {
+            return 1.0;
+        }
+        let (_, p_spec, p_trans) = self.lobe_weights(cos_o);
+        (1.0 - p_spec - p_trans).max(0.0)
+    }
+
     /// `E(wo)` (see [`Self::specular_albedo`], at most 1) and the probabilities of sampling
     /// the specular lobes and the rough transmission, from the lobes' albedos: functions of `wo`
     /// only, shared by `eval_pdf` and `sample_direction`, interpolated between the columns of

@@ -5,9 +5,11 @@ use arrayvec::ArrayVec;
 use glam::Vec3;
 use std::time::Instant;
 
+use super::continuation::{Continuation, bounce_openings};
 use super::stats::{Stats, TIMING_STRIDE, timer_overhead};
 use crate::asset::desc::AlphaMode;
 use crate::light::area::LightPoint;
+use crate::light::bounce::{BounceGuide, GuideContext};
 use crate::light::estimator::{LightContext, LightSample, LightSampler, PickedLight};
 use crate::light::sky::{SkyContext, SkySample, SkySampler};
 use crate::light::{LightSet, Mixture, Selection, Strategy, Technique};
@@ -34,6 +36,42 @@ pub struct RenderSettings {
     pub selection: Selection,
     /// Whether shadow rays cross thin glass or stop at it.
     pub glass: GlassShadows,
+    /// Whether paths continue through the portals as well as by the BSDF.
+    pub bounces: GuideBounces,
+}
+
+/// Whether a path's next direction may be drawn through the portals (guided continuation,
+/// `docs/method.md` §12) or from the BSDF alone.
+#[derive(
+    Clone,
+    Copy,
+    Debug,
+    Default,
+    PartialEq,
+    Eq,
+    Hash,
+    serde::Serialize,
+    serde::Deserialize,
+    clap::ValueEnum,
+)]
+pub enum GuideBounces {
+    /// From a mixture of the BSDF and the openings bounced light leaves by: lamps' portals,
+    /// and windows with something outside them.
+    #[default]
+    On,
+    /// From the BSDF alone (light bounced inside a shade is found by chance).
+    Off,
+}
+
+impl GuideBounces {
+    pub const ALL: [GuideBounces; 2] = [GuideBounces::On, GuideBounces::Off];
+
+    pub fn label(self) -> &'static str {
+        match self {
+            GuideBounces::On => "on",
+            GuideBounces::Off => "off",
+        }
+    }
 }
 
 /// What a shadow ray does at smooth thin-walled glass (a pane, a globe's shell). BSDF paths
@@ -82,6 +120,7 @@ impl Default for RenderSettings {
             mixture: Mixture::default(),
             selection: Selection::default(),
             glass: GlassShadows::default(),
+            bounces: GuideBounces::default(),
         }
     }
 }
@@ -109,6 +148,9 @@ struct Shading<'m> {
     /// (a volume's inside, entered from the front), for shadow rays that leave either way.
     sigma: Vec3,
     sigma_below: Vec3,
+    /// What the next direction is drawn from: the BSDF, or the BSDF and the openings. Light
+    /// sampling here is weighted against its density.
+    continuation: Continuation<'m>,
 }
 
 impl Shading<'_> {
@@ -198,6 +240,7 @@ fn volume_sigma(material: &Material, back: bool) -> Vec3 {
 pub struct PathContexts {
     even: LightContext,
     odd: LightContext,
+    guide: GuideContext,
 }
 
 impl PathContexts {
@@ -206,6 +249,7 @@ impl PathContexts {
         PathContexts {
             even: LightContext::new(),
             odd: LightContext::new(),
+            guide: GuideContext::new(),
         }
     }
 }
@@ -252,6 +296,9 @@ pub struct Integrator<'a> {
     /// The scene has volumes (`KHR_materials_volume`): boundaries that refract, media that
     /// absorb.
     volumes: bool,
+    /// The openings paths continue through ([`GuideBounces::On`], a bounce to follow, and
+    /// openings with light behind them).
+    guide: Option<BounceGuide>,
 }
 
 /// The most smooth dielectric events (reflections and refractions at a volume's boundary,
@@ -291,6 +338,10 @@ impl<'a> Integrator<'a> {
         };
         let area_lights = &scene.geometry.lights;
         let volumes = scene.geometry.materials.iter().any(|m| m.volume.is_some());
+        // Guiding pays only where the vertex it leads to gathers light (not the last).
+        let guide = (settings.bounces == GuideBounces::On && settings.max_depth >= 2)
+            .then(|| BounceGuide::new(bounce_openings(scene)))
+            .filter(|g| !g.is_empty());
         Integrator {
             scene,
             lights,
@@ -299,6 +350,7 @@ impl<'a> Integrator<'a> {
             scale: scene.geometry.scale(),
             panes: scene.geometry.has_panes,
             volumes,
+            guide,
             // A cut-out light lets rays through its holes: it must be found by tracing.
             polygon_lights: area_lights.len() <= DIRECT_LIGHT_TEST_LIMIT
                 && area_lights.iter().all(|l| l.polygon.is_some())
@@ -427,7 +479,7 @@ impl<'a> Integrator<'a> {
         let mut beta = Vec3::ONE;
         let (mut o, mut d) = (origin, dir);
         // Two context buffers, reused in turn by consecutive vertices (see `fill_context`).
-        let PathContexts { even, odd } = contexts;
+        let PathContexts { even, odd, guide } = contexts;
         let mut previous: Option<(Vec3, Vec3, bool, f32)> = None;
         // The medium the ray travels in (absorbing inside a volume), and the smooth
         // dielectric events so far, which do not count as depth.
@@ -580,8 +632,20 @@ impl<'a> Integrator<'a> {
                 }
             }
             let material = shading.material;
+            if let Some(openings) = &self.guide
+                && depth + 1 < self.settings.max_depth
+            {
+                // Guiding pays only where the vertex it leads to gathers light (not the last).
+                shading.continuation = Continuation::guided(
+                    openings,
+                    guide,
+                    (shading.x, shading.pick_normal()),
+                    material.diffuse_probability(shading.wo_local.z),
+                );
+            }
 
-            // Next-event estimation through the chosen strategy.
+            // Next-event estimation through the chosen strategy, weighted against the
+            // continuation's density.
             let direct = self.sample_direct(
                 tracer,
                 &shading,
@@ -596,25 +660,30 @@ impl<'a> Integrator<'a> {
             let picked = direct.is_some_and(|d| d.context_filled);
             l += beta * direct.map_or(Vec3::ZERO, |d| d.l);
 
-            // BSDF sampling: the next ray, and MIS for the light it may hit.
+            // The next direction: from the BSDF, or through the openings (guided continuation),
+            // and MIS for the light it may hit with the mixture's density.
+            let last = depth + 1 == self.settings.max_depth;
             let ([u_lobe], u) = rng.uniforms_uniform2();
-            let Some(wi_local) = material.sample_direction(shading.wo_local, u_lobe, u) else {
+            let continuation = shading.continuation;
+            let Some((wi, wi_local)) =
+                continuation.sample(material, &shading.frame, shading.wo_local, u_lobe, u)
+            else {
                 break;
             };
-            let wi = shading.frame.to_world(wi_local);
             let Some(origin) = shading.origin(wi, wi_local) else {
                 break;
             };
             // Before the last vertex, a direction that meets no light polygon gathers nothing:
             // skip evaluating the BSDF for it (most directions, in these scenes).
-            let last = depth + 1 == self.settings.max_depth;
             if last && self.polygon_lights && self.nearest_light_polygon(origin, wi).is_none() {
                 break;
             }
-            let Some(bs) = material.sampled(shading.wo_local, wi_local) else {
+            let (f, bsdf_pdf) = material.eval_pdf(shading.wo_local, wi_local);
+            let pdf = continuation.pdf(bsdf_pdf, wi);
+            if pdf.is_nan() || pdf <= 0.0 || f == Vec3::ZERO {
                 break;
-            };
-            beta *= bs.f * shading.bump_shadowing(wi) * bs.wi.z.abs() / bs.pdf;
+            }
+            beta *= f * shading.bump_shadowing(wi) * wi_local.z.abs() / pdf;
             if !beta.is_finite() {
                 break;
             }
@@ -626,9 +695,9 @@ impl<'a> Integrator<'a> {
                 }
                 beta /= survive;
             }
-            previous = Some((shading.x, shading.pick_normal(), picked, bs.pdf));
+            previous = Some((shading.x, shading.pick_normal(), picked, pdf));
             if self.volumes {
-                sigma = shading.medium_along(bs.wi);
+                sigma = shading.medium_along(wi_local);
             }
             o = origin;
             d = wi;
@@ -783,6 +852,7 @@ impl<'a> Integrator<'a> {
             back,
             sigma: Vec3::ZERO,
             sigma_below: Vec3::ZERO,
+            continuation: Continuation::bsdf(),
         })
     }
 
@@ -1059,6 +1129,7 @@ impl<'a> Integrator<'a> {
         if f == Vec3::ZERO {
             return Vec3::ZERO;
         }
+        let bsdf_pdf = s.continuation.pdf(bsdf_pdf, wi);
         stats.shadow_rays += 1;
         let mut transmittance = self.visibility(tracer, origin, wi, tmax);
         if transmittance == Vec3::ZERO {

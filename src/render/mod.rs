@@ -1,5 +1,6 @@
 //! Rendering: the integrator, the film, passes over tiles, and the worker threads a UI drives.
 
+pub mod continuation;
 pub mod film;
 pub mod integrator;
 pub mod primary;

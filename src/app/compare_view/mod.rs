@@ -25,7 +25,7 @@ use crate::compare::worker::{
 };
 use crate::compare::{ImageSpec, Reference, ReferenceBudget, default_cache_dir, scene_hash};
 use crate::light::{Mixture, Selection, Strategy};
-use crate::render::integrator::GlassShadows;
+use crate::render::integrator::{GlassShadows, GuideBounces};
 use crate::sampling::SamplerKind;
 use crate::scene::Scene;
 
@@ -106,6 +106,7 @@ struct RequestKey {
     mixture: Mixture,
     selection: Selection,
     glass: GlassShadows,
+    bounces: GuideBounces,
     reference: ReferenceSource,
 }
 
@@ -247,7 +248,13 @@ impl CompareView {
         settings: &CompareViewSettings,
         max_depth: u32,
         alpha: Option<f32>,
-        (sampler, mixture, selection, glass): (SamplerKind, Mixture, Selection, GlassShadows),
+        (sampler, mixture, selection, glass, bounces): (
+            SamplerKind,
+            Mixture,
+            Selection,
+            GlassShadows,
+            GuideBounces,
+        ),
     ) {
         self.poll();
         if let Some(frame) = &self.frame
@@ -284,6 +291,7 @@ impl CompareView {
             mixture,
             selection,
             glass,
+            bounces,
             reference,
         };
         if self.worker.is_some() && self.running.as_ref() == Some(&key) {
@@ -313,6 +321,7 @@ impl CompareView {
             mixture,
             selection,
             glass,
+            bounces,
             reference: key.reference.clone(),
             known_reference: self.last_reference.clone(),
             paused: self.paused,
