@@ -5,7 +5,9 @@ use indicatif::ProgressBar;
 use std::sync::atomic::AtomicBool;
 use std::time::Instant;
 
-use super::metrics::{mse, mse_above_floor, relmse};
+use super::metrics::{
+    BULK_DROPPED, WORST_FRACTION, bulk_mse, mse, mse_above_floor, relmse, worst_pixels_share,
+};
 use super::reference::{ImageSpec, Reference, ReferenceInfo, ReferenceOrigin};
 use crate::light::{Mixture, Selection, Strategy};
 use crate::render::film::Film;
@@ -178,6 +180,11 @@ pub struct StrategyResult {
     pub mse_above_floor: Option<f64>,
     /// The efficiency ratio to light sampling's from `mse_above_floor` (both must be known).
     pub efficiency_vs_light_above_floor: Option<f64>,
+    /// The share of the squared error in the worst 1 % of pixels ([`worst_pixels_share`]):
+    /// near 1 where fireflies carry the error.
+    pub worst_share: f64,
+    /// The MSE without the worst 0.1 % of pixels ([`bulk_mse`]).
+    pub bulk_mse: f64,
     pub stats: Stats,
 }
 
@@ -324,6 +331,8 @@ pub fn compare_each(
                         efficiency_vs_light: None,
                         mse_above_floor: mse_above_floor(error, floor),
                         efficiency_vs_light_above_floor: None,
+                        worst_share: worst_pixels_share(&mean, &reference.pixels, WORST_FRACTION),
+                        bulk_mse: bulk_mse(&mean, &reference.pixels, BULK_DROPPED),
                         stats: run.stats,
                     }
                 })

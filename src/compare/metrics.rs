@@ -50,6 +50,55 @@ fn mean_channel_error(
     sum / (3 * image.len()) as f64
 }
 
+/// The share of the pixels that [`worst_pixels_share`] reports on: the worst 1 %.
+pub const WORST_FRACTION: f64 = 0.01;
+
+/// The share of the squared error (summed over a pixel's channels) that the worst `fraction`
+/// of the pixels hold: about `fraction` where the error is spread evenly (noise the eye
+/// averages), near 1 where a few fireflies carry it. 0 for an image equal to its reference.
+///
+/// # Panics
+/// If the lengths differ.
+pub fn worst_pixels_share(image: &[Vec3], reference: &[Vec3], fraction: f64) -> f64 {
+    assert_eq!(image.len(), reference.len(), "images of different sizes");
+    let mut errors: Vec<f64> = image
+        .iter()
+        .zip(reference)
+        .map(|(&x, &r)| (x.as_dvec3() - r.as_dvec3()).length_squared())
+        .collect();
+    let total: f64 = errors.iter().sum();
+    if !(total > 0.0 && total.is_finite()) {
+        return 0.0;
+    }
+    let worst = ((errors.len() as f64 * fraction).ceil() as usize).min(errors.len());
+    errors.sort_unstable_by(|a, b| b.total_cmp(a));
+    errors[..worst].iter().sum::<f64>() / total
+}
+
+/// The share of the pixels [`bulk_mse`] leaves out: the worst 0.1 %.
+pub const BULK_DROPPED: f64 = 0.001;
+
+/// The MSE of the image's bulk: over the pixels less the worst `dropped` fraction by squared
+/// error (a handful of fireflies can carry the whole MSE while the rest of the image, what a
+/// user looks at, is clean or grainy).
+///
+/// # Panics
+/// If the lengths differ.
+pub fn bulk_mse(image: &[Vec3], reference: &[Vec3], dropped: f64) -> f64 {
+    assert_eq!(image.len(), reference.len(), "images of different sizes");
+    let mut errors: Vec<f64> = image
+        .iter()
+        .zip(reference)
+        .map(|(&x, &r)| (x.as_dvec3() - r.as_dvec3()).length_squared())
+        .collect();
+    let kept = errors.len() - ((errors.len() as f64 * dropped).floor() as usize).min(errors.len());
+    if kept == 0 {
+        return 0.0;
+    }
+    errors.sort_unstable_by(f64::total_cmp);
+    errors[..kept].iter().sum::<f64>() / (3 * kept) as f64
+}
+
 /// The MSE with the reference's noise floor taken out: the reference's noise is independent of
 /// the image's, so the measured MSE is the true MSE plus the floor and `mse − floor` is an
 /// unbiased estimate of the true MSE. `None` where that is not positive (an image the reference
@@ -103,6 +152,30 @@ impl Convergence {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Evenly spread error puts 1 % of it in the worst 1 % of pixels; one firefly among
+    /// otherwise exact pixels puts all of it there.
+    #[test]
+    fn the_worst_pixels_share_tells_fireflies_from_noise() {
+        let reference = vec![Vec3::splat(0.5); 1000];
+        let even: Vec<Vec3> = reference.iter().map(|r| *r + 0.1).collect();
+        let share = worst_pixels_share(&even, &reference, WORST_FRACTION);
+        assert!((share - 0.01).abs() < 1e-9, "{share}");
+        let mut firefly = reference.clone();
+        firefly[17] = Vec3::splat(50.0);
+        assert_eq!(
+            worst_pixels_share(&firefly, &reference, WORST_FRACTION),
+            1.0
+        );
+        assert_eq!(
+            worst_pixels_share(&reference, &reference, WORST_FRACTION),
+            0.0
+        );
+        // The bulk leaves the firefly out, and is the MSE where the error is even.
+        assert_eq!(bulk_mse(&firefly, &reference, BULK_DROPPED), 0.0);
+        let even_mse = mse(&even, &reference);
+        assert!((bulk_mse(&even, &reference, BULK_DROPPED) - even_mse).abs() < 1e-12);
+    }
 
     #[test]
     fn the_floor_is_subtracted_only_when_known_and_below_the_mse() {

@@ -12,8 +12,9 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use crate::compare::{
-    ConvergencePoint, EqualTime, ImageSpec, Reference, ReferenceBudget, ReferenceOrigin, cache_key,
-    find_cached_reference, load_reference, mse, relmse, render_reference, store_reference,
+    ConvergencePoint, EqualTime, ImageSpec, Reference, ReferenceBudget, ReferenceOrigin,
+    WORST_FRACTION, cache_key, find_cached_reference, load_reference, mse, relmse,
+    render_reference, store_reference, worst_pixels_share,
 };
 use crate::light::{Mixture, Selection, Strategy};
 use crate::render::Cancelled;
@@ -88,6 +89,8 @@ pub struct RunFrame {
     /// Against the reference, of `pixels` (NaN before the first pass).
     pub mse: f64,
     pub relmse: f64,
+    /// The share of the squared error in the worst 1 % of pixels (NaN before the first pass).
+    pub worst_share: f64,
     /// Recorded at log-spaced times (about 24 a decade), ending with the current state.
     pub history: Vec<ConvergencePoint>,
 }
@@ -171,6 +174,7 @@ struct RunState {
     pixels: Arc<Vec<Vec3>>,
     mse: f64,
     relmse: f64,
+    worst_share: f64,
     history: Vec<ConvergencePoint>,
     next_record: f64,
 }
@@ -240,6 +244,7 @@ impl Job {
                         seconds: run.seconds,
                         mse: state.mse,
                         relmse: state.relmse,
+                        worst_share: state.worst_share,
                         history,
                     }
                 })
@@ -362,6 +367,7 @@ impl CompareWork {
                             pixels: Arc::new(Vec::new()),
                             mse: f64::NAN,
                             relmse: f64::NAN,
+                            worst_share: f64::NAN,
                             history: Vec::new(),
                             next_record: 0.0,
                         })
@@ -400,6 +406,7 @@ impl CompareWork {
         let state = &mut job.runs[i];
         state.mse = mse(&mean, &reference.pixels);
         state.relmse = relmse(&mean, &reference.pixels);
+        state.worst_share = worst_pixels_share(&mean, &reference.pixels, WORST_FRACTION);
         state.pixels = Arc::new(mean);
         if run.seconds >= state.next_record {
             state.history.push(ConvergencePoint {

@@ -10,6 +10,7 @@ use crate::light::LightSet;
 use crate::light::area::luminance;
 use crate::light::bounce::{BounceGuide, GuideContext, Opening};
 use crate::light::split_share;
+use crate::light::tree::flux_through;
 use crate::material::Material;
 use crate::sampling::polygon::ConvexPolygon;
 use crate::sampling::{Frame, Rng, sample_cosine_hemisphere};
@@ -114,22 +115,29 @@ impl<'g> Continuation<'g> {
 }
 
 /// The openings bounced light leaves by, with a guess at the luminance leaving each (only their
-/// relative weights depend on it). A lamp portal's: its light's power spread over all the
-/// light's portals, `Φ / (π Σ A)`, the radiance across its openings if all of it left through
-/// them. A window's: the environment's mean luminance times the mean albedo of what rays cast
-/// out of it meet, zero where nothing stands outside (the sky itself is light sampling's).
+/// relative weights depend on it). A lamp portal's: the light's power that does not leave its
+/// portals directly (what its enclosure's walls receive, [`flux_through`] taken from its power),
+/// spread over all the light's portals, `(Φ − Φ_through) / (π Σ A)`: a can whose emitter faces
+/// its opening sends little light by bounces, a bulb in a shade most of it. A window's: the
+/// environment's mean luminance times the mean albedo of what rays cast out of it meet, zero
+/// where nothing stands outside (the sky itself is light sampling's).
 pub fn bounce_openings(scene: &Scene) -> Vec<Opening> {
     let geometry = &*scene.geometry;
-    let mut portal_area = vec![0.0f32; geometry.lights.len()];
+    let lights = &geometry.lights;
+    let (mut portal_area, mut through) = (vec![0.0f32; lights.len()], vec![0.0f32; lights.len()]);
     for p in &scene.portals {
         portal_area[p.light] += p.polygon.area();
+        through[p.light] += flux_through(&lights[p.light], &p.polygon);
     }
     let mut openings: Vec<Opening> = scene
         .portals
         .iter()
-        .map(|p| Opening {
-            polygon: p.polygon.clone(),
-            radiance: geometry.lights[p.light].power() / (PI * portal_area[p.light]),
+        .map(|p| {
+            let bounced = (lights[p.light].power() - through[p.light]).max(0.0);
+            Opening {
+                polygon: p.polygon.clone(),
+                radiance: bounced / (PI * portal_area[p.light]),
+            }
         })
         .collect();
     if let Some(env) = scene.environment() {

@@ -338,7 +338,7 @@ impl<'a> Integrator<'a> {
         };
         let area_lights = &scene.geometry.lights;
         let volumes = scene.geometry.materials.iter().any(|m| m.volume.is_some());
-        // Guiding pays only where the vertex it leads to gathers light (not the last).
+        // Guiding pays only where the vertex the bounce leads to gathers light (not the last).
         let guide = (settings.bounces == GuideBounces::On && settings.max_depth >= 2)
             .then(|| BounceGuide::new(bounce_openings(scene)))
             .filter(|g| !g.is_empty());
@@ -633,9 +633,12 @@ impl<'a> Integrator<'a> {
             }
             let material = shading.material;
             if let Some(openings) = &self.guide
-                && depth + 1 < self.settings.max_depth
+                && depth == 0
             {
-                // Guiding pays only where the vertex it leads to gathers light (not the last).
+                // The first bounce only: the one the camera sees (a guided vertex pays for its
+                // weights and densities, which deeper, dimmer vertices do not repay: measured in
+                // docs/performance.md). `guide` exists only from max depth 2 on, so the vertex
+                // this bounce leads to gathers light.
                 shading.continuation = Continuation::guided(
                     openings,
                     guide,

@@ -181,12 +181,12 @@ impl CompareView {
             // The table's headers and an empty row from the start: the panel takes the table's
             // width now, so that the numbers arriving do not widen it and shift the images.
             egui::Grid::new("compare numbers")
-                .num_columns(6)
+                .num_columns(7)
                 .striped(true)
                 .show(ui, |ui| {
                     header_row(ui, "MSE", "relMSE");
                     ui.label("no numbers yet");
-                    for _ in 0..5 {
+                    for _ in 0..6 {
                         ui.label("–");
                     }
                     ui.end_row();
@@ -209,7 +209,7 @@ impl CompareView {
         };
         let light = frame.run(Strategy::Light).map(|l| (l, errors(l).0));
         egui::Grid::new("compare numbers")
-            .num_columns(6)
+            .num_columns(7)
             .striped(true)
             .show(ui, |ui| {
                 let (mse, relmse) = match floor {
@@ -229,6 +229,11 @@ impl CompareView {
                         efficiency_vs_light((mse, run.seconds), light)
                             .map_or("-".to_owned(), |e| format!("{e:.2}")),
                     );
+                    ui.label(if run.worst_share.is_finite() {
+                        format!("{:.0} %", 100.0 * run.worst_share)
+                    } else {
+                        "–".to_owned()
+                    });
                     ui.end_row();
                 }
             });
@@ -299,5 +304,11 @@ fn header_row(ui: &mut Ui, mse: &str, relmse: &str) {
     for h in ["strategy", "spp", "seconds", mse, relmse, "eff. vs light"] {
         ui.label(RichText::new(h).strong());
     }
+    ui.label(RichText::new("worst 1 % px").strong())
+        .on_hover_text(
+            "The share of the squared error in the 1 % of pixels with the most: about 1 % where \
+         the noise is spread evenly, near 100 % where a few fireflies carry the error (which \
+         the mean hides).",
+        );
     ui.end_row();
 }
