@@ -182,7 +182,8 @@ fn the_camera_and_the_first_light_direction_form_one_net() {
 /// other (each is scrambled as a dimension of its own), and pixels do not repeat one pattern.
 /// Tolerances: a chi-square over 16 bins at 1e-3 (critical value 37.7 for 15 degrees of
 /// freedom), and correlations within 4 standard errors (1/√n for uncorrelated pairs).
-/// Negative case: the same statistics flag a sampler whose draws repeat across slots.
+/// Negative cases: the same statistics flag a dimension that collides with another in one pixel
+/// of eight, and a slot drawn slightly off uniform.
 #[test]
 fn sobol_draws_are_uniform_and_uncorrelated_across_pixels() {
     let (w, h) = (64u32, 64u32);
@@ -229,10 +230,21 @@ fn sobol_draws_are_uniform_and_uncorrelated_across_pixels() {
             );
         }
     }
-    // Negative case: a slot against itself shifted by a little noise is flagged.
-    let a = slot(2);
-    let shifted: Vec<f32> = a.iter().map(|&x| (x + 0.01) % 1.0).collect();
-    assert!(correlation(&a, &shifted).abs() > 4.0 / n.sqrt());
+    // Negative cases of the failures the test exists for. A dimension that collides with
+    // another in one pixel of eight (slot 5 reusing slot 2's number there): a correlation of
+    // about 1/8, twice the tolerance, is flagged.
+    let (two, five) = (slot(2), slot(5));
+    let collided: Vec<f32> = five
+        .iter()
+        .zip(&two)
+        .enumerate()
+        .map(|(i, (&f, &t))| if i % 8 == 0 { t } else { f })
+        .collect();
+    assert!(correlation(&two, &collided).abs() > 4.0 / n.sqrt());
+    // A slot drawn slightly off uniform (`u^1.1`, its lowest sixteenth 8% instead of 6.25%
+    // likely) fails the chi-square.
+    let warped: Vec<f32> = two.iter().map(|&x| x.powf(1.1)).collect();
+    assert!(chi_square(&warped) > 37.7);
 }
 
 /// Per-block means of an image `(mean, standard error)`, luminance, `b × b` blocks.
