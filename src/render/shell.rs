@@ -296,9 +296,17 @@ mod tests {
         }
         let g = h.generation();
         assert_eq!(g, 5);
-        let (generation, n) = wait_for(|| h.latest().filter(|f| f.0 == g && f.1 > 4000));
-        assert_eq!(generation, 5);
-        assert!(n > 4000);
+        // The first frame of the newest generation counts on from its own request (4000), not
+        // from an older one's: the worker started the newest request, not a stale one.
+        let (_, n) = wait_for(|| h.latest().filter(|f| f.0 == g));
+        assert!(n > 4000, "{n}");
+        // And no older generation's frame is published after it (counted frames, not time).
+        let mut last = n;
+        for _ in 0..20 {
+            let (generation, m) = wait_for(|| h.latest().filter(|f| f.1 > last || f.0 != g));
+            assert_eq!(generation, g, "a stale frame after the newest");
+            last = m;
+        }
         h.request(98);
         wait_for(|| h.error());
         let error = h.error().unwrap();
