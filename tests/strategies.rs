@@ -15,13 +15,15 @@ use glam::{Vec2, Vec3};
 use portalview::asset::builtin;
 use portalview::light::antishadow::Region;
 use portalview::light::estimator::{
-    LightContext, LightSample, LightSampler, PickedLight, portal_pdf, projected_light, term_pdf,
+    LightContext, LightSample, LightSampler, PickedLight, portal_pdf, projected_light, projection,
+    term_pdf,
 };
 use portalview::light::portal::Portal;
 use portalview::light::{Mixture, Selection, Strategy, Technique};
 use portalview::render::film::Film;
 use portalview::render::integrator::{Integrator, RenderSettings};
 use portalview::render::render;
+use portalview::sampling::spherical::SphericalPolygon;
 use portalview::sampling::{Frame, Rng, SamplerKind};
 use portalview::scene::Scene;
 
@@ -336,7 +338,44 @@ fn sampled_pdf_equals_evaluated_pdf() {
                     s.technique_pdf
                 );
                 assert!(s.pdf.is_finite() && s.pdf > 0.0);
-                assert_eq!(s.pdf, sampler.pdf(scene, &ctx, s.wi, s.hit));
+                // The mixture rebuilt from its parts, not by `LightSampler::pdf`: `p_L` by
+                // hand from the hit (`d² / (A |cos|)`, or `1/Ω` of the light polygon where the
+                // context samples it by solid angle), each term's density from its portal's
+                // geometry, `q = α p_L + (1 − α) Σ_j w_j p_j` (`p_L` alone behind every portal).
+                let light = &scene.geometry.lights[ctx.light];
+                let p_l = match (hit, &light.polygon) {
+                    (None, _) => 0.0,
+                    (Some(_), Some(polygon)) if ctx.by_solid_angle => {
+                        SphericalPolygon::new(x, polygon.vertices()).map_or(0.0, |q| q.pdf(s.wi))
+                    }
+                    (Some((y, d)), _) => d * d / (light.area() * y.n.dot(s.wi).abs()),
+                };
+                let portals: f32 = ctx
+                    .terms()
+                    .iter()
+                    .map(|t| {
+                        let portal = &scene.portals[t.portal];
+                        t.weight
+                            * match t.technique {
+                                Technique::Light => p_l,
+                                Technique::Portal => portal.polygon.direction_pdf(x, s.wi),
+                                Technique::Projection => {
+                                    projection(portal, x).map_or(0.0, |q| q.pdf(s.wi))
+                                }
+                            }
+                    })
+                    .sum();
+                let q = if ctx.uses_portals {
+                    ctx.alpha * p_l + (1.0 - ctx.alpha) * portals
+                } else {
+                    p_l
+                };
+                assert!(
+                    (q - s.pdf).abs() <= 2e-3 * q.max(s.pdf),
+                    "{}: the sample's mixture pdf {} vs {q} rebuilt",
+                    case.label(strategy),
+                    s.pdf
+                );
             }
         }
     }
