@@ -60,19 +60,13 @@ pub const WORST_FRACTION: f64 = 0.01;
 /// # Panics
 /// If the lengths differ.
 pub fn worst_pixels_share(image: &[Vec3], reference: &[Vec3], fraction: f64) -> f64 {
-    assert_eq!(image.len(), reference.len(), "images of different sizes");
-    let mut errors: Vec<f64> = image
-        .iter()
-        .zip(reference)
-        .map(|(&x, &r)| (x.as_dvec3() - r.as_dvec3()).length_squared())
-        .collect();
+    let errors = sorted_pixel_errors(image, reference);
     let total: f64 = errors.iter().sum();
     if !(total > 0.0 && total.is_finite()) {
         return 0.0;
     }
     let worst = ((errors.len() as f64 * fraction).ceil() as usize).min(errors.len());
-    errors.sort_unstable_by(|a, b| b.total_cmp(a));
-    errors[..worst].iter().sum::<f64>() / total
+    errors[errors.len() - worst..].iter().sum::<f64>() / total
 }
 
 /// The share of the pixels [`bulk_mse`] leaves out: the worst 0.1 %.
@@ -85,18 +79,27 @@ pub const BULK_DROPPED: f64 = 0.001;
 /// # Panics
 /// If the lengths differ.
 pub fn bulk_mse(image: &[Vec3], reference: &[Vec3], dropped: f64) -> f64 {
+    let errors = sorted_pixel_errors(image, reference);
+    let kept = errors.len() - ((errors.len() as f64 * dropped).floor() as usize).min(errors.len());
+    if kept == 0 {
+        return 0.0;
+    }
+    errors[..kept].iter().sum::<f64>() / (3 * kept) as f64
+}
+
+/// Each pixel's squared error summed over its channels, in increasing order.
+///
+/// # Panics
+/// If the lengths differ.
+fn sorted_pixel_errors(image: &[Vec3], reference: &[Vec3]) -> Vec<f64> {
     assert_eq!(image.len(), reference.len(), "images of different sizes");
     let mut errors: Vec<f64> = image
         .iter()
         .zip(reference)
         .map(|(&x, &r)| (x.as_dvec3() - r.as_dvec3()).length_squared())
         .collect();
-    let kept = errors.len() - ((errors.len() as f64 * dropped).floor() as usize).min(errors.len());
-    if kept == 0 {
-        return 0.0;
-    }
     errors.sort_unstable_by(f64::total_cmp);
-    errors[..kept].iter().sum::<f64>() / (3 * kept) as f64
+    errors
 }
 
 /// The MSE with the reference's noise floor taken out: the reference's noise is independent of
