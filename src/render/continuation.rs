@@ -45,8 +45,8 @@ impl<'g> Continuation<'g> {
 
     /// The mixture at `x` with normal `n` (`Vec3::ZERO` where paths leave by either side) for
     /// a material whose sampler draws its diffuse lobe with probability `diffuse`: `g =`
-    /// [`GUIDE_SHARE`]` · diffuse` where an opening has weight, else 0 (behind every portal,
-    /// and where every opening lies below the surface). `ctx` is filled here.
+    /// [`GUIDE_SHARE`]` · diffuse` where an opening has weight, else 0 (behind every opening,
+    /// or where every opening lies below the surface). `ctx` is filled here.
     pub fn guided(
         guide: &'g BounceGuide,
         ctx: &'g mut GuideContext,
