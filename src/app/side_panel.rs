@@ -138,11 +138,11 @@ impl PortalViewApp {
         });
         ui.horizontal(|ui| {
             ui.label("guide bounces").on_hover_text(
-                "Where a path bounces (max depth 2 and more): on draws the next direction \
+                "At a path's first bounce (max depth 2 and more): on draws the next direction \
                  through the portals of lamps and cans (and windows with something outside) \
                  as well as from the surface's BSDF, so the light a shade reflects inside before \
-                 it leaves is found without fireflies. off: from the BSDF alone. The same \
-                 image either way.",
+                 it leaves is found with far fewer fireflies. off: from the BSDF alone. The \
+                 same image either way.",
             );
             for b in GuideBounces::ALL {
                 if ui.selectable_value(bounces, b, b.label()).changed() {
