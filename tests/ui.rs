@@ -94,6 +94,34 @@ fn switching_the_mixture_restarts_the_render_with_it() {
     );
 }
 
+/// The guide-bounces buttons restart the render with the chosen setting, and back: with the
+/// bounces guided through the lampshade's portals, more of the second vertices lie inside the
+/// shade, behind both portals, than with the BSDF alone.
+#[test]
+fn switching_guide_bounces_restarts_the_render_with_it() {
+    use portalview::render::integrator::GuideBounces;
+    let _serial = serial();
+    let mut h = harness("lampshade");
+    step_until(&mut h, "first frame", has_full_frame);
+    assert_eq!(h.state().settings.max_depth, 2);
+    let behind_share = |a: &PortalViewApp| {
+        let s = a.frame().unwrap().stats;
+        s.regions[0] as f64 / s.regions.iter().sum::<u64>() as f64
+    };
+    let mut shares = Vec::new();
+    // On is the default: off first, then back.
+    for (label, bounces) in [("off", GuideBounces::Off), ("on", GuideBounces::On)] {
+        click_until_restarted(&mut h, label);
+        assert_eq!(h.state().settings.bounces, bounces);
+        assert_eq!(h.state().render_settings().bounces, bounces);
+        shares.push(behind_share(h.state()));
+    }
+    assert!(
+        shares[1] > 1.2 * shares[0],
+        "shading points behind the portals {shares:?}"
+    );
+}
+
 /// The light selection buttons restart the render with the chosen selection, and back;
 /// `view --light-selection` sets the one it starts with.
 #[test]
