@@ -53,7 +53,7 @@ fn skylight_under_a_roof() -> Scene {
     let skylight = square(Vec3::new(0.0, 1.5, 0.0), -Vec3::Y, 0.4);
     // Its front faces down, to the skylight.
     let roof = square(Vec3::new(0.3, 1.9, 0.0), -Vec3::Y, 0.5);
-    SceneDesc {
+    let desc = SceneDesc {
         name: "skylight".into(),
         materials: vec![
             MaterialDesc::diffuse("room", Vec3::splat(0.6)),
@@ -64,19 +64,8 @@ fn skylight_under_a_roof() -> Scene {
         camera: camera(Vec3::new(0.0, 1.3, 0.95), Vec3::new(0.0, 0.0, -0.3)),
         environment: Some(EnvironmentDesc::constant(Vec3::ONE)),
         ..SceneDesc::default()
-    }
-    .into_scene()
-}
-
-trait IntoScene {
-    fn into_scene(self) -> Scene;
-}
-
-impl IntoScene for SceneDesc {
-    fn into_scene(self) -> Scene {
-        let name = self.name.clone();
-        Scene::from_desc(self, &name).unwrap()
-    }
+    };
+    Scene::from_desc(desc, "skylight").unwrap()
 }
 
 /// Both scenes give their guide openings: the lamp's two portals, and the skylight, which
@@ -95,7 +84,7 @@ fn lamps_and_windows_with_something_outside_are_guided() {
     let mut open = skylight_under_a_roof();
     let mut desc = (*open.desc).clone();
     desc.meshes.truncate(1);
-    open = desc.into_scene();
+    open = Scene::from_desc(desc, "open skylight").unwrap();
     assert_eq!(radiance(&open), vec![0.0], "a window onto the sky alone");
 }
 

@@ -85,22 +85,20 @@ impl<'g> Continuation<'g> {
         u_lobe: f32,
         u: Vec2,
     ) -> Option<(Vec3, Vec3)> {
-        match self.guide {
-            Some((guide, ctx)) => {
-                let (guided, u_lobe) = split_share(Vec2::new(u_lobe, 0.0), self.g);
-                if guided {
-                    let wi = guide.sample(ctx, u_lobe.x, u)?;
-                    Some((wi, frame.to_local(wi)))
-                } else {
-                    let wi_local = material.sample_direction(wo, u_lobe.x, u)?;
-                    Some((frame.to_world(wi_local), wi_local))
-                }
-            }
+        let (guide, ctx) = match self.guide {
+            Some(guide) => guide,
             None => {
                 let wi_local = material.sample_direction(wo, u_lobe, u)?;
-                Some((frame.to_world(wi_local), wi_local))
+                return Some((frame.to_world(wi_local), wi_local));
             }
+        };
+        let (guided, u_lobe) = split_share(Vec2::new(u_lobe, 0.0), self.g);
+        if guided {
+            let wi = guide.sample(ctx, u_lobe.x, u)?;
+            return Some((wi, frame.to_local(wi)));
         }
+        let wi_local = material.sample_direction(wo, u_lobe.x, u)?;
+        Some((frame.to_world(wi_local), wi_local))
     }
 
     /// The mixture's density for the world direction `wi`, given the BSDF's `bsdf_pdf` there:
