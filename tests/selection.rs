@@ -348,6 +348,7 @@ fn a_tree_that_drops_a_lamp_is_detected() {
         .map(|(i, light)| TreeLight {
             light: PickedLight::Area(i),
             parts: vec![area_light_bounds(light, 1.0)],
+            behind: Default::default(),
         })
         .collect();
     let lamp = &scene.lamps()[0];
@@ -363,6 +364,7 @@ fn a_tree_that_drops_a_lamp_is_detected() {
             two_sided: false,
             within: None,
         }],
+        behind: Default::default(),
     });
     let wrong = LightTree::from_parts(lights, scene.lights().len(), 1);
     let strategy = Strategy::Antishadow;
@@ -396,5 +398,53 @@ fn single_light_images_are_unchanged() {
             });
             assert_eq!(tree, power, "{name} {}", strategy.name());
         }
+    }
+}
+
+/// Inside a shade that bulges far past its opening, the estimator samples the bulb directly
+/// (the points are behind its portal), and the tree gives the bulb its enclosure's share there
+/// as it does next to the bulb: the box where the bulb's rays meet the shade holds the bulge.
+/// Against the scene before that box is measured (the viewer's state while it is: the box
+/// around the bulb and the portal), the enclosure's part, `(1 − alpha)/alpha` = 9 times the
+/// bulb's own, must raise the bulb's odds against the panel outside at least 3-fold (the
+/// tree's loose bounds at its root take some); without it they are the same. Next to the
+/// bulb, and outside the shade at the same height (behind the portal's plane too), the
+/// probabilities are the same.
+#[test]
+fn a_shade_bulging_past_its_opening_is_all_enclosure() {
+    let scene = Scene::from_desc(common::bulging_shade(10.0), "bulging shade").unwrap();
+    let (unmeasured, errors) = scene.with_portals_deferred(scene.desc.portals.clone(), None);
+    assert!(errors.is_empty() && unmeasured.lacks_tables() && !scene.lacks_tables());
+    let bulb = scene
+        .lights()
+        .iter()
+        .position(|l| l.name == "bulb")
+        .unwrap();
+    let bulb = PickedLight::Area(bulb);
+    let p = |scene: &Scene, x: Vec3, n: Vec3| {
+        LightSampler::new(scene, Strategy::Antishadow, None).probability(bulb, x, n)
+    };
+    let odds = |p: f32| p / (1.0 - p);
+    // The shade's inner walls in the bulge, lifted off them, facing the bulb.
+    let bulge = [
+        (Vec3::new(0.39, 1.5, 0.0), -Vec3::X),
+        (Vec3::new(-0.2, 1.21, 0.39), Vec3::Y),
+        (Vec3::new(-0.2, 1.6, 0.39), -Vec3::Z),
+    ];
+    for (x, n) in bulge {
+        let (measured, fallback) = (p(&scene, x, n), p(&unmeasured, x, n));
+        println!("{x}: measured box {measured}, around the bulb and portal {fallback}");
+        assert!(
+            fallback > 0.0 && fallback < 1.0 && odds(measured) >= 3.0 * odds(fallback),
+            "{x}: {measured} against {fallback}"
+        );
+    }
+    let facing_both = Vec3::new(-1.0, 1.0, 0.0).normalize();
+    for x in [Vec3::new(0.05, 1.3, 0.0), Vec3::new(2.0, 1.5, 0.0)] {
+        assert_eq!(
+            p(&scene, x, facing_both),
+            p(&unmeasured, x, facing_both),
+            "{x}"
+        );
     }
 }

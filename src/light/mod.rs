@@ -45,6 +45,12 @@ pub trait LightSet {
     fn windows(&self) -> &[Window] {
         &[]
     }
+    /// The box where area light `light` lights its enclosure, as measured
+    /// (`scene::enclosure`); `None`: not measured (the tree then takes the box around the
+    /// light and its portals).
+    fn enclosure(&self, _light: usize) -> Option<(glam::Vec3, glam::Vec3)> {
+        None
+    }
 }
 
 /// Picks the light's share (probability `alpha`) or the portals' by `u.x`, and stretches `u.x`

@@ -5,8 +5,9 @@
 //! and an intensity. A light without portals (or under the light strategy, which ignores
 //! them) has one part: itself. A light behind portals has one part per portal, the portal's
 //! polygon emitting into its front with the light's flux through it (its `1 − alpha` share),
-//! one for its enclosure (the light's `1 − alpha` share, at points inside the box around it
-//! and its portals), and one part for itself with its `alpha` share: any point the light can
+//! one for its enclosure (the light's `1 − alpha` share, at points behind all its portals,
+//! where the estimator samples the light itself, inside the box where its rays first meet the
+//! enclosure's walls), and one part for itself with its `alpha` share: any point the light can
 //! reach keeps a
 //! positive probability, through a portal's part or through the light's own, so a misplaced
 //! portal costs variance, never bias. The environment behind windows is a leaf of its
@@ -27,7 +28,7 @@ use super::area::{AreaLight, luminance};
 use super::environment::Environment;
 use crate::asset::desc::LampKind;
 use crate::sampling::ONE_BELOW;
-use crate::sampling::polygon::ConvexPolygon;
+use crate::sampling::polygon::{ConvexPolygon, Plane};
 
 /// What a pick chose: an area light or a lamp, by index in its own list, or the environment.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -222,17 +223,24 @@ pub fn area_light_bounds(light: &AreaLight, share: f32) -> LightBounds {
 const ENCLOSURE_PAD: f32 = 1e-3;
 
 /// A light behind portals as it lights its own enclosure (a lampshade's inside, a can's
-/// walls): the light's own bounds with its `1 − alpha` share, reaching only points in the box
-/// around the light and its portals. There the estimator samples the light itself, past the
-/// portals, and the portals' parts are 0 (the points are behind them). The importance is the
-/// light's own, not that of the larger box: a shade's outside lies in the box too, and there
-/// the light is behind the surface, which only its own box can tell.
-pub fn enclosure_bounds(light: &AreaLight, portals: &[&ConvexPolygon], share: f32) -> LightBounds {
+/// walls): the light's own bounds with its `1 − alpha` share, reaching only points in
+/// `measured` (the box where the light's rays meet its enclosure, `scene::enclosure`), else
+/// in the box around the light and its portals. There the estimator samples the light
+/// itself, past the portals, and the portals' parts are 0 (the points are behind them). The
+/// importance is the light's own, not that of the larger box: a shade's outside lies in the
+/// box too, and there the light is behind the surface, which only its own box can tell.
+pub fn enclosure_bounds(
+    light: &AreaLight,
+    portals: &[&ConvexPolygon],
+    share: f32,
+    measured: Option<(Vec3, Vec3)>,
+) -> LightBounds {
     let own = area_light_bounds(light, share);
     let (lo, hi) = portals
         .iter()
         .flat_map(|p| p.vertices())
         .fold((own.lo, own.hi), |(lo, hi), &v| (lo.min(v), hi.max(v)));
+    let (lo, hi) = measured.map_or((lo, hi), |(a, b)| (lo.min(a), hi.max(b)));
     // Grown a little: the enclosure's walls often lie on the box's faces (a can's sides
     // under its portal's edges), and their points fall either side of them by rounding.
     let pad = Vec3::splat(ENCLOSURE_PAD * (hi - lo).length());
@@ -359,6 +367,30 @@ struct Leaf {
 pub struct TreeLight {
     pub light: PickedLight,
     pub parts: Vec<LightBounds>,
+    /// Its portals' planes (positive in front): its enclosure's parts count only behind all.
+    pub behind: ArrayVec<Plane, { super::MAX_TERMS }>,
+}
+
+/// A light's enclosure part (`within` a box) beside the tree, with its portals' planes.
+#[derive(Clone, Debug)]
+struct Enclosure {
+    light: PickedLight,
+    bounds: LightBounds,
+    behind: ArrayVec<Plane, { super::MAX_TERMS }>,
+}
+
+impl Enclosure {
+    /// The part's importance where `x` is behind all the portals, as the estimator's
+    /// `Region::Behind` (not strictly in front of the portal's plane); 0 elsewhere.
+    #[inline(always)]
+    fn importance(&self, x: Vec3, n: Vec3) -> f32 {
+        let w = self.bounds.importance(x, n);
+        if w > 0.0 && self.behind.iter().any(|p| p.signed_distance(x) > 0.0) {
+            0.0
+        } else {
+            w
+        }
+    }
 }
 
 /// The lights under their bounds, and the emitters beside them.
@@ -374,7 +406,7 @@ pub struct LightTree {
     /// The enclosures' parts (`within` a box), beside the tree: each is evaluated exactly at
     /// the point, not through the union bounds of the subtrees above a leaf, which are as
     /// loose as the room around it where the enclosure's light is the brightest by far.
-    enclosures: Vec<(PickedLight, LightBounds)>,
+    enclosures: Vec<Enclosure>,
     infinite: Vec<Infinite>,
     /// The scene's only emitter, when it has one: picked with probability 1.
     only: Option<PickedLight>,
@@ -425,7 +457,12 @@ impl LightTree {
                         let flux = (1.0 - alpha) * flux_through(light, polygon);
                         parts.push(portal_bounds(light, polygon, flux / std::f32::consts::PI));
                     }
-                    parts.push(enclosure_bounds(light, &polygons, 1.0 - alpha));
+                    parts.push(enclosure_bounds(
+                        light,
+                        &polygons,
+                        1.0 - alpha,
+                        scene.enclosure(i),
+                    ));
                 }
                 if alpha > 0.0 {
                     parts.push(area_light_bounds(light, alpha));
@@ -436,6 +473,10 @@ impl LightTree {
             lights.push(TreeLight {
                 light: PickedLight::Area(i),
                 parts,
+                behind: portals
+                    .iter()
+                    .map(|&j| scene.portals()[j].planes.portal_plane())
+                    .collect(),
             });
         }
         for (k, lamp) in scene.lamps().iter().enumerate() {
@@ -465,6 +506,7 @@ impl LightTree {
             lights.push(TreeLight {
                 light: PickedLight::Lamp(k),
                 parts: vec![part],
+                behind: ArrayVec::new(),
             });
         }
         if let Some(environment) = scene.environment() {
@@ -487,6 +529,7 @@ impl LightTree {
                 lights.push(TreeLight {
                     light: PickedLight::Environment,
                     parts,
+                    behind: ArrayVec::new(),
                 });
             }
             if alpha > 0.0 {
@@ -526,7 +569,11 @@ impl LightTree {
             let (enclosures, parts): (Vec<LightBounds>, Vec<LightBounds>) =
                 light.parts.into_iter().partition(|p| p.within.is_some());
             tree.enclosures
-                .extend(enclosures.into_iter().map(|p| (light.light, p)));
+                .extend(enclosures.into_iter().map(|bounds| Enclosure {
+                    light: light.light,
+                    bounds,
+                    behind: light.behind.clone(),
+                }));
             let Some(first) = parts.first() else {
                 continue;
             };
@@ -647,7 +694,7 @@ impl LightTree {
         let enclosures = self
             .enclosures
             .iter()
-            .map(move |(l, b)| (*l, b.importance(x, n)));
+            .map(move |e| (e.light, e.importance(x, n)));
         enclosures.chain(
             self.infinite
                 .iter()
@@ -660,9 +707,9 @@ impl LightTree {
     #[inline(always)]
     fn beside_probability(&self, light: PickedLight, x: Vec3, n: Vec3, total: f32) -> f32 {
         let mut p = 0.0;
-        for (l, b) in &self.enclosures {
-            if *l == light {
-                p += b.importance(x, n) / total;
+        for e in &self.enclosures {
+            if e.light == light {
+                p += e.importance(x, n) / total;
             }
         }
         for e in &self.infinite {

@@ -1,10 +1,12 @@
 //! Scenes: what is authored (glTF, built-ins), validated and made ready to trace.
 
 pub mod bvh;
+pub mod enclosure;
 pub mod opening;
 pub mod portals;
 
 use glam::{Vec2, Vec3, Vec4};
+use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
@@ -270,6 +272,9 @@ pub struct Scene {
     pub camera: Camera,
     /// The glTF file it was loaded from, if any (where Save writes).
     pub source: Option<PathBuf>,
+    /// Per area light, the box where it lights its enclosure ([`enclosure::enclosure_box`]);
+    /// empty until measured (after a portal edit, [`Self::build_tables`]).
+    enclosures: Vec<Option<(Vec3, Vec3)>>,
 }
 
 impl Scene {
@@ -455,8 +460,9 @@ impl Scene {
             windows,
             camera,
             source: None,
+            enclosures: Vec::new(),
         };
-        scene.resolve_auto_alpha(AUTO_ALPHA_SEED);
+        scene.measure_portals();
         Ok(scene)
     }
 
@@ -515,9 +521,10 @@ impl Scene {
             desc: Arc::new(desc),
             portals: validated,
             windows,
+            enclosures: Vec::new(),
             ..self.clone()
         };
-        scene.resolve_auto_alpha(AUTO_ALPHA_SEED);
+        scene.measure_portals();
         Ok(scene)
     }
 
@@ -583,6 +590,7 @@ impl Scene {
             desc: Arc::new(desc),
             portals: valid,
             windows,
+            enclosures: Vec::new(),
             ..self.clone()
         };
         (scene, errors)
@@ -592,16 +600,31 @@ impl Scene {
     /// [`Self::with_portals_deferred`]), or an `auto` alpha is not measured yet.
     pub fn lacks_tables(&self) -> bool {
         let environment = self.environment.as_deref();
-        self.windows.iter().any(|w| w.lacks_table(environment)) || self.alpha_pending()
+        self.windows.iter().any(|w| w.lacks_table(environment))
+            || self.alpha_pending()
+            || self.enclosures.len() != self.geometry.lights.len()
     }
 
-    /// Builds the guided tables the windows lack and measures the `auto` alphas.
+    /// Builds the guided tables the windows lack, measures the `auto` alphas and the
+    /// enclosures.
     pub fn build_tables(&mut self) {
         let environment = self.environment.as_deref();
         for window in &mut self.windows {
             window.build_table(environment);
         }
+        self.measure_portals();
+    }
+
+    /// Measures what the portals' rays show: the `auto` alphas, and each light's enclosure.
+    fn measure_portals(&mut self) {
         self.resolve_auto_alpha(AUTO_ALPHA_SEED);
+        if self.enclosures.len() != self.geometry.lights.len() {
+            let scene = &*self;
+            self.enclosures = (0..scene.geometry.lights.len())
+                .into_par_iter()
+                .map(|i| enclosure::enclosure_box(scene, i))
+                .collect();
+        }
     }
 
     /// The same scene under another environment (`None`: black). Windows are rebuilt for it
@@ -789,6 +812,10 @@ impl LightSet for Scene {
 
     fn windows(&self) -> &[Window] {
         &self.windows
+    }
+
+    fn enclosure(&self, light: usize) -> Option<(Vec3, Vec3)> {
+        self.enclosures.get(light).copied().flatten()
     }
 }
 

@@ -173,7 +173,7 @@ const MAX_PASSED_SURFACES: usize = 1024;
 /// Traces from `origin` along `dir`, through the triangles of light `skip` (a light is not its
 /// own enclosure) and through thin glass (a glazed window or lamp opening is an opening, as
 /// the renderer's rays cross it): the distance to the first other surface, or infinity.
-fn depth(scene: &Scene, skip: Option<usize>, origin: Vec3, dir: Vec3) -> f32 {
+pub(super) fn depth(scene: &Scene, skip: Option<usize>, origin: Vec3, dir: Vec3) -> f32 {
     let geometry = &scene.geometry;
     let mut tmin = 0.0;
     // A ray may pass through a light's surface more than once (a bulb's near and far sides, a

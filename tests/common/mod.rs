@@ -445,6 +445,33 @@ pub fn bulb_in_shade() -> SceneDesc {
     desc
 }
 
+/// A bulb in a wide closed box (a shade that bulges far past its opening) with a small hole in
+/// its bottom, a portal across the hole, and a ceiling panel elsewhere in the room: the box's
+/// sides are far outside the box around the bulb and the portal.
+pub fn bulging_shade(panel_le: f32) -> SceneDesc {
+    let panel = square(Vec3::new(-1.5, 2.5, 0.0), -Vec3::Y, 0.2);
+    let mut desc = floor_and_light(0.6, panel, panel_le);
+    desc.materials
+        .push(MaterialDesc::emitter("bulb", Vec3::splat(20.0), false));
+    desc.meshes.push(uv_sphere(
+        "bulb",
+        desc.materials.len() - 1,
+        Vec3::new(0.0, 1.5, 0.0),
+        0.05,
+        (12, 8),
+    ));
+    let (lo, hi) = (Vec3::new(-0.4, 1.2, -0.4), Vec3::new(0.4, 1.8, 0.4));
+    box_with_holes(&mut desc, lo, hi, &[(0.3, 0.5, 0.3, 0.5)]);
+    let opening = [
+        Vec3::new(-0.1, 1.2, -0.1),
+        Vec3::new(0.1, 1.2, -0.1),
+        Vec3::new(0.1, 1.2, 0.1),
+        Vec3::new(-0.1, 1.2, 0.1),
+    ];
+    desc.portals.push(portal("opening", "bulb", 0.1, &opening));
+    desc
+}
+
 /// A floor and a neon tube of 8 sides (16 vertices: hulled exactly) in a box, over a slot in
 /// the box's bottom narrower and shorter than the tube, a portal in the slot: far below,
 /// every direction through the slot meets the tube (antiantumbra).
