@@ -309,10 +309,19 @@ impl PortalViewApp {
     /// What the builder is making, in a few words, while it is.
     fn building(&self) -> Option<&'static str> {
         let current = self.current.as_ref().filter(|_| self.is_building())?;
+        let environment = current.rendered.environment.as_deref();
         Some(if current.environment.is_some() {
             "building the environment"
-        } else {
+        } else if current
+            .rendered
+            .windows
+            .iter()
+            .any(|w| w.lacks_table(environment))
+        {
             "building window tables"
+        } else {
+            // The auto alphas and the enclosures' boxes (`Scene::build_tables`).
+            "measuring the portals"
         })
     }
 
