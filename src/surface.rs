@@ -40,6 +40,8 @@ pub struct SurfaceTextures {
     specular: Option<Texture>,
     specular_color: Option<Texture>,
     transmission: Option<Texture>,
+    clearcoat: Option<Texture>,
+    clearcoat_roughness: Option<Texture>,
 }
 
 impl SurfaceTextures {
@@ -79,6 +81,11 @@ impl SurfaceTextures {
             specular: resolve(t.specular.as_ref(), "specularTexture")?,
             specular_color: resolve(t.specular_color.as_ref(), "specularColorTexture")?,
             transmission: resolve(t.transmission.as_ref(), "transmissionTexture")?,
+            clearcoat: resolve(t.clearcoat.as_ref(), "clearcoatTexture")?,
+            clearcoat_roughness: resolve(
+                t.clearcoat_roughness.as_ref(),
+                "clearcoatRoughnessTexture",
+            )?,
         }))
     }
 
@@ -156,6 +163,12 @@ impl SurfaceTextures {
         }
         if let Some(t) = &self.transmission {
             p.transmission *= t.sample(uvs, Encoding::Linear).x;
+        }
+        if let Some(t) = &self.clearcoat {
+            p.clearcoat *= t.sample(uvs, Encoding::Linear).x;
+        }
+        if let Some(t) = &self.clearcoat_roughness {
+            p.clearcoat_roughness *= t.sample(uvs, Encoding::Linear).y;
         }
         p.emission *= self.emission_scale(uvs);
         Material::at_incidence(&p, cos_o)

@@ -1254,6 +1254,31 @@ fn triangle_doc(dir: &Path, stem: &str, positions: &[[f32; 3]], indices: &[u16])
 const TRIANGLE: [[f32; 3]; 3] = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
 
 /// Gives the triangle of `triangle_doc` a material "Paint" with these `extensions`.
+/// Gives the triangle of `doc` a `TEXCOORD_0` (in a second buffer, `uv.bin` in `dir`).
+fn with_uvs(dir: &Path, doc: &mut Value) {
+    let uv = {
+        let mut bin = Bin::default();
+        bin.vec2s(&[[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]]);
+        fs::write(dir.join("uv.bin"), &bin.bytes).unwrap();
+        bin
+    };
+    doc["buffers"]
+        .as_array_mut()
+        .unwrap()
+        .push(json!({"uri": "uv.bin", "byteLength": uv.bytes.len()}));
+    let views = doc["bufferViews"].as_array().unwrap().len();
+    doc["bufferViews"]
+        .as_array_mut()
+        .unwrap()
+        .push(json!({"buffer": 1, "byteOffset": 0, "byteLength": uv.bytes.len()}));
+    let accessors = doc["accessors"].as_array().unwrap().len();
+    doc["accessors"]
+        .as_array_mut()
+        .unwrap()
+        .push(json!({"bufferView": views, "componentType": 5126, "count": 3, "type": "VEC2"}));
+    doc["meshes"][0]["primitives"][0]["attributes"]["TEXCOORD_0"] = json!(accessors);
+}
+
 fn with_material(doc: &mut Value, extensions: Value) {
     doc["materials"] = json!([{"name": "Paint", "extensions": extensions}]);
     doc["meshes"][0]["primitives"][0]["material"] = json!(0);
@@ -1451,6 +1476,20 @@ fn broken_files_give_errors_naming_the_file_and_field() {
                 "material 0 \"Paint\"",
                 "KHR_materials_transmission.transmissionFactor",
                 "1.5",
+            ],
+        ),
+        (
+            "clearcoat_above_one.gltf",
+            edited(|d| {
+                with_material(
+                    d,
+                    json!({"KHR_materials_clearcoat": {"clearcoatFactor": 1.0, "clearcoatRoughnessFactor": 2.0}}),
+                )
+            }),
+            &[
+                "material 0 \"Paint\"",
+                "KHR_materials_clearcoat.clearcoatRoughnessFactor",
+                "2.0",
             ],
         ),
         (
@@ -1762,37 +1801,69 @@ fn transmission_and_volume_are_read_and_what_is_not_rendered_warns() {
     let _ = fs::remove_dir_all(&dir);
 }
 
+/// A clear coat as Blender 3.4 writes it (`clearcoatFactor`, `clearcoatRoughnessFactor`, and
+/// one image with the coat in R and its roughness in G) is read without a warning, and at a
+/// point the factors are multiplied by their channels. A coat over a normal map, and a
+/// `clearcoatNormalTexture`, warn (the coat takes the shading normal); a coat over a
+/// refracting volume warns that it is not rendered.
+#[test]
+fn clearcoat_is_read_with_its_textures_and_what_is_not_rendered_warns() {
+    let dir = temp_dir("clearcoat");
+    let mut doc = triangle_doc(&dir, "coat", &TRIANGLE, &[0, 1, 2]);
+    doc["extensionsUsed"] = json!(["KHR_materials_clearcoat"]);
+    with_uvs(&dir, &mut doc);
+    fs::write(dir.join("coat.png"), png(1, 1, &[[128, 64, 0, 255]])).unwrap();
+    doc["images"] = json!([{"uri": "coat.png"}]);
+    doc["textures"] = json!([{"source": 0}]);
+    with_material(
+        &mut doc,
+        json!({"KHR_materials_clearcoat": {"clearcoatFactor": 0.8, "clearcoatRoughnessFactor": 0.5,
+            "clearcoatTexture": {"index": 0}, "clearcoatRoughnessTexture": {"index": 0}}}),
+    );
+    let path = dir.join("coat.gltf");
+    write_json(&path, &doc);
+    let scene = load_gltf(&path).unwrap();
+    assert!(scene.warnings.is_empty(), "{:?}", scene.warnings);
+    let m = &scene.materials[0];
+    assert_eq!((m.clearcoat, m.clearcoat_roughness), (0.8, 0.5));
+    let images = scene.images.clone();
+    let surface = portalview::surface::SurfaceTextures::new(m, &images)
+        .unwrap()
+        .unwrap();
+    let at_point = surface.material(&[glam::Vec2::splat(0.5); 2], 1.0);
+    let roughness = 0.5 * 64.0 / 255.0;
+    assert!((at_point.clearcoat - 0.8 * 128.0 / 255.0).abs() < 1e-6);
+    assert!((at_point.clearcoat_alpha - roughness * roughness).abs() < 1e-6);
+
+    doc["materials"][0]["extensions"]["KHR_materials_clearcoat"]["clearcoatNormalTexture"] =
+        json!({"index": 0});
+    doc["materials"][0]["extensions"]["KHR_materials_transmission"] =
+        json!({"transmissionFactor": 1.0});
+    doc["materials"][0]["extensions"]["KHR_materials_volume"] = json!({"thicknessFactor": 0.1});
+    write_json(&path, &doc);
+    let scene = load_gltf(&path).unwrap();
+    let warnings = scene.warnings.join("\n");
+    assert!(
+        warnings.contains("coat.gltf")
+            && warnings.contains("clearcoatNormalTexture is not read")
+            && warnings.contains("over a refracting volume"),
+        "{warnings}"
+    );
+    assert_eq!(scene.materials[0].clearcoat, 0.0);
+    let _ = fs::remove_dir_all(&dir);
+}
+
 /// The specular layer's textures are read; an extension the file uses but that is not read
 /// is a warning naming the file and the extension.
 #[test]
 fn specular_textures_are_read_and_unread_extensions_warn() {
     let dir = temp_dir("specular-texture");
     let mut doc = triangle_doc(&dir, "textured", &TRIANGLE, &[0, 1, 2]);
-    doc["extensionsUsed"] = json!(["KHR_materials_specular", "KHR_materials_clearcoat"]);
+    doc["extensionsUsed"] = json!(["KHR_materials_specular", "KHR_materials_sheen"]);
     fs::write(dir.join("spec.png"), png(1, 1, &[[255, 128, 0, 64]])).unwrap();
     doc["images"] = json!([{"uri": "spec.png"}]);
     doc["textures"] = json!([{"source": 0}]);
-    let uv = {
-        let mut bin = Bin::default();
-        bin.vec2s(&[[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]]);
-        fs::write(dir.join("uv.bin"), &bin.bytes).unwrap();
-        bin
-    };
-    doc["buffers"]
-        .as_array_mut()
-        .unwrap()
-        .push(json!({"uri": "uv.bin", "byteLength": uv.bytes.len()}));
-    let views = doc["bufferViews"].as_array().unwrap().len();
-    doc["bufferViews"]
-        .as_array_mut()
-        .unwrap()
-        .push(json!({"buffer": 1, "byteOffset": 0, "byteLength": uv.bytes.len()}));
-    let accessors = doc["accessors"].as_array().unwrap().len();
-    doc["accessors"]
-        .as_array_mut()
-        .unwrap()
-        .push(json!({"bufferView": views, "componentType": 5126, "count": 3, "type": "VEC2"}));
-    doc["meshes"][0]["primitives"][0]["attributes"]["TEXCOORD_0"] = json!(accessors);
+    with_uvs(&dir, &mut doc);
     with_material(
         &mut doc,
         json!({"KHR_materials_specular": {"specularColorTexture": {"index": 0}, "specularTexture": {"index": 0}, "specularFactor": 0.7}}),
@@ -1807,7 +1878,7 @@ fn specular_textures_are_read_and_unread_extensions_warn() {
     assert_eq!(m.textures.specular.map(|t| t.image), Some(0));
     assert_eq!(warnings.len(), 1, "{warnings:?}");
     assert!(
-        warnings[0].contains("textured.gltf") && warnings[0].contains("KHR_materials_clearcoat"),
+        warnings[0].contains("textured.gltf") && warnings[0].contains("KHR_materials_sheen"),
         "{warnings:?}"
     );
     // At a point: specularFactor × A (64/255), specularColor × sRGB-decoded RGB.
@@ -1922,6 +1993,19 @@ fn textured_export_round_trips() {
     base.sampler.wrap_s = Wrap::MirroredRepeat;
     base.sampler.filter = Filter::Nearest;
     m.textures.specular_color = m.textures.base_color;
+    // A clear coat with its textures, on a material without a normal map (a coat over one
+    // warns that it follows it).
+    let coated = desc
+        .materials
+        .iter()
+        .position(|m| m.textures.normal.is_none())
+        .unwrap();
+    let image = desc.materials[0].textures.base_color;
+    let m = &mut desc.materials[coated];
+    m.clearcoat = 0.6;
+    m.clearcoat_roughness = 0.25;
+    m.textures.clearcoat = image;
+    m.textures.clearcoat_roughness = image;
     let mesh = &mut desc.meshes[0];
     mesh.tangents = vec![glam::Vec4::new(1.0, 0.0, 0.0, -1.0); mesh.positions.len()];
     let path = dir.join("textured.glb");
@@ -1948,7 +2032,12 @@ fn textured_export_round_trips() {
             a.textures.normal.map(|n| n.scale),
             b.textures.normal.map(|n| n.scale)
         );
+        assert_eq!(
+            (a.clearcoat, a.clearcoat_roughness),
+            (b.clearcoat, b.clearcoat_roughness)
+        );
     }
+    assert!(back.materials[coated].textures.clearcoat.is_some());
     for (a, b) in back.meshes.iter().zip(&desc.meshes) {
         assert_eq!(a.texcoords, b.texcoords, "{}", b.node_name);
         assert_eq!(a.tangents, b.tangents, "{}", b.node_name);

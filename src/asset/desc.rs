@@ -45,6 +45,10 @@ pub struct MaterialTextures {
     pub specular_color: Option<TextureRef>,
     /// `KHR_materials_transmission` `transmissionTexture`: the factor in R.
     pub transmission: Option<TextureRef>,
+    /// `KHR_materials_clearcoat` `clearcoatTexture` (the factor in R) and
+    /// `clearcoatRoughnessTexture` (the roughness in G).
+    pub clearcoat: Option<TextureRef>,
+    pub clearcoat_roughness: Option<TextureRef>,
 }
 
 impl MaterialTextures {
@@ -62,6 +66,8 @@ impl MaterialTextures {
             self.specular.as_ref(),
             self.specular_color.as_ref(),
             self.transmission.as_ref(),
+            self.clearcoat.as_ref(),
+            self.clearcoat_roughness.as_ref(),
         ]
         .into_iter()
         .flatten()
@@ -94,6 +100,11 @@ pub struct MaterialDesc {
     /// `KHR_materials_volume` with `thicknessFactor` > 0: the mesh is closed and filled with
     /// the transmitting dielectric, which refracts (`None`: thin-walled).
     pub volume: Option<VolumeDesc>,
+    /// `KHR_materials_clearcoat` `clearcoatFactor` in [0, 1] (0 when absent: no coat) and
+    /// `clearcoatRoughnessFactor` in [0, 1]: Blender's Principled *Clearcoat* and *Clearcoat
+    /// Roughness*, as its exporter writes them.
+    pub clearcoat: f32,
+    pub clearcoat_roughness: f32,
     pub double_sided: bool,
     /// `baseColorFactor`'s alpha.
     pub alpha: f32,
@@ -147,6 +158,8 @@ impl MaterialDesc {
             ior: DEFAULT_IOR,
             transmission: 0.0,
             volume: None,
+            clearcoat: 0.0,
+            clearcoat_roughness: 0.0,
             double_sided: true,
             alpha: 1.0,
             alpha_mode: AlphaMode::Opaque,
@@ -184,6 +197,12 @@ impl MaterialDesc {
     /// Whether the IOR differs from glTF's default.
     pub fn has_ior_extension(&self) -> bool {
         self.ior != DEFAULT_IOR
+    }
+
+    /// Whether the material has a clear coat (so a file must say it with
+    /// `KHR_materials_clearcoat`).
+    pub fn has_clearcoat_extension(&self) -> bool {
+        self.clearcoat > 0.0
     }
 
     /// Whether the material transmits (so a file must say it with `KHR_materials_transmission`).

@@ -23,6 +23,15 @@
 //! is what Blender means by Principled *Specular* 0 (see `docs/method.md`), and F90 fades
 //! to that continuously below F0 = 1e-3.
 //!
+//! A clear coat (`KHR_materials_clearcoat`, written by Blender's exporter from the Principled
+//! BSDF's *Clearcoat*) is rendered as Cycles 3.4 renders that input, and as Mitsuba 3's
+//! `principled` and the Disney BRDF it follows: a lobe added over the rest, `0.25·clearcoat·
+//! F(wi·h)·D_GTR1(h)·G1(wo)·G1(wi) / (4 cos θo cos θi)`, with the exact Fresnel of IOR 1.5,
+//! Berry's GTR1 distribution of alpha = coat roughness², and Smith's separable masking of a
+//! fixed alpha 0.25. It takes nothing from the base, so a white base under a full coat
+//! reflects up to `1 + 0.25·E_coat` (`docs/method.md` §7). The glTF extension's own text
+//! defines the coat differently (a GGX layer that darkens the base by its Fresnel at `n·wo`).
+//!
 //! Energy conservation by construction: the diffuse loses exactly the directional albedo
 //! `E(wo)` of the specular layer (its largest channel), looked up in a table of the GGX
 //! albedo with Schlick's Fresnel, so `diffuse + specular ≤ 1` for every `wo`, and a layer
@@ -71,10 +80,22 @@ pub struct Material {
     /// A dielectric boundary's relative IOR, `n` beyond over `n` on the side of `wo` (0 for
     /// every other material): see [`Self::dielectric`].
     eta: f32,
+    /// The clear coat's weight (Principled *Clearcoat*, `clearcoatFactor`), in [0, 1].
+    pub clearcoat: f32,
+    /// The clear coat's GTR1 alpha: its roughness squared, in [[`MIN_ALPHA`], [`MAX_COAT_ALPHA`]].
+    pub clearcoat_alpha: f32,
     /// What depends on `wo` only, at the albedo table's columns of `√cos θo`: see
     /// [`Material::lobe_weights`].
     lobes: [[f32; 2]; ALBEDO_COS_CELLS + 1],
 }
+
+/// The clear coat's IOR, its weight's scale and its masking's fixed alpha (Cycles 3.4,
+/// `bsdf_microfacet_ggx_clearcoat_setup` and `_eval_reflect`; the Disney BRDF's numbers).
+const COAT_IOR: f32 = 1.5;
+const COAT_SCALE: f32 = 0.25;
+const COAT_MASKING_ALPHA: f32 = 0.25;
+/// GTR1's density degenerates at alpha 1 (`(α² − 1)/ln α²` → 1): the largest alpha kept.
+const MAX_COAT_ALPHA: f32 = 0.999;
 
 /// What fills a closed mesh of a refracting material (`KHR_materials_volume`).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -115,6 +136,10 @@ pub struct MaterialParams {
     pub volume: Option<Volume>,
     pub emission: Vec3,
     pub double_sided: bool,
+    /// `clearcoatFactor` (times its texture's R) and `clearcoatRoughnessFactor` (times its
+    /// texture's G).
+    pub clearcoat: f32,
+    pub clearcoat_roughness: f32,
 }
 
 impl MaterialParams {
@@ -133,6 +158,8 @@ impl MaterialParams {
             }),
             emission: desc.radiance(),
             double_sided: desc.double_sided,
+            clearcoat: desc.clearcoat,
+            clearcoat_roughness: desc.clearcoat_roughness,
         }
     }
 }
@@ -173,6 +200,11 @@ impl Material {
             transmission: p.transmission.clamp(0.0, 1.0),
             volume: p.volume,
             eta: 0.0,
+            clearcoat: p.clearcoat.clamp(0.0, 1.0),
+            clearcoat_alpha: {
+                let r = p.clearcoat_roughness.clamp(0.0, 1.0);
+                (r * r).clamp(MIN_ALPHA, MAX_COAT_ALPHA)
+            },
             lobes: [[0.0; 2]; ALBEDO_COS_CELLS + 1],
         }
     }
@@ -231,6 +263,8 @@ impl Material {
             transmission: 0.0,
             volume: None,
             eta: 0.0,
+            clearcoat: 0.0,
+            clearcoat_alpha: MAX_COAT_ALPHA,
             lobes: [[0.0; 2]; ALBEDO_COS_CELLS + 1],
         }
     }
@@ -245,6 +279,7 @@ impl Material {
             && self.diffuse_color().max_element() <= 0.0
             && self.f0.max_element() <= 0.0
             && self.f90 <= 0.0
+            && self.clearcoat <= 0.0
             && (self.dielectric_share() <= 0.0 || self.base_color.max_element() <= 0.0)
     }
 
@@ -299,6 +334,8 @@ impl Material {
             double_sided: true,
             transmission: 0.0,
             volume: None,
+            clearcoat: 0.0,
+            clearcoat_alpha: MAX_COAT_ALPHA,
             eta: if inside { 1.0 / ior } else { ior },
             lobes: [[0.0; 2]; ALBEDO_COS_CELLS + 1],
         }
@@ -432,11 +469,50 @@ impl Material {
         if self.eta > 0.0 || cos_o <= 0.0 {
             return 0.0;
         }
-        if !self.has_specular() && !self.transmits_rough() {
+        if !self.has_specular() && !self.transmits_rough() && !self.has_coat() {
             return 1.0;
         }
-        let (_, p_spec, p_trans) = self.lobe_weights(cos_o);
-        (1.0 - p_spec - p_trans).max(0.0)
+        let (e, p_spec, p_trans) = self.lobe_weights(cos_o);
+        (1.0 - self.coat_probability(cos_o, e)) * (1.0 - p_spec - p_trans).max(0.0)
+    }
+
+    /// Whether it has a clear coat.
+    #[inline(always)]
+    fn has_coat(&self) -> bool {
+        self.clearcoat > 0.0
+    }
+
+    /// The probability of drawing the clear coat's lobe at `wo` (`E(wo)` = `e`): its weight's
+    /// share, `0.25·clearcoat·F(cos θo)`, against an estimate of the rest's albedo. Any
+    /// function of `wo` keeps the estimator unbiased; this one follows the lobes' sizes.
+    #[inline(always)]
+    fn coat_probability(&self, cos_o: f32, e: f32) -> f32 {
+        if !self.has_coat() {
+            return 0.0;
+        }
+        let coat = COAT_SCALE * self.clearcoat * fresnel_dielectric(cos_o, COAT_IOR);
+        let m = self.metallic;
+        let mean = |v: Vec3| (v.x + v.y + v.z) / 3.0;
+        let rest = (1.0 - m) * ((1.0 - e) * mean(self.base_color) + e) + m * mean(self.base_color);
+        coat / (coat + rest.max(1e-3))
+    }
+
+    /// The clear coat's `f(wo, wi)` (both above the surface) and the density of drawing `wi`
+    /// from its lobe: a GTR1 normal `h`, `wi` its mirror of `wo`.
+    #[inline(always)]
+    fn eval_pdf_coat(&self, wo: Vec3, wi: Vec3) -> (f32, f32) {
+        let h = (wo + wi).normalize();
+        let cos_oh = wo.dot(h);
+        if h.z <= 0.0 || cos_oh <= 0.0 {
+            return (0.0, 0.0);
+        }
+        let d = gtr1_d(h.z, self.clearcoat_alpha);
+        let g = 1.0
+            / ((1.0 + ggx_lambda(wo, COAT_MASKING_ALPHA))
+                * (1.0 + ggx_lambda(wi, COAT_MASKING_ALPHA)));
+        let f = fresnel_dielectric(cos_oh, COAT_IOR);
+        let value = COAT_SCALE * self.clearcoat * f * g * d / (4.0 * wo.z * wi.z);
+        (value, d * h.z / (4.0 * cos_oh))
     }
 
     /// `E(wo)` (see [`Self::specular_albedo`], at most 1) and the probabilities of sampling
@@ -475,6 +551,7 @@ impl Material {
     /// `A + B` (F0 = F90 = 1) so that it carries exactly `T(wo)`; and the pdf of drawing it.
     fn eval_pdf_transmitted(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
         let (e_spec, _, p_trans) = self.lobe_weights(wo.z);
+        let p_trans = p_trans * (1.0 - self.coat_probability(wo.z, e_spec));
         let wr = Vec3::new(wi.x, wi.y, -wi.z);
         let h = (wo + wr).normalize();
         let d = ggx_d(h, self.alpha);
@@ -505,7 +582,7 @@ impl Material {
             return (Vec3::ZERO, 0.0);
         }
         let m = self.metallic;
-        if !self.has_specular() && !self.transmits_rough() {
+        if !self.has_specular() && !self.transmits_rough() && !self.has_coat() {
             return (
                 self.diffuse_color() * FRAC_1_PI,
                 cosine_hemisphere_pdf(wi.z),
@@ -513,6 +590,12 @@ impl Material {
         }
         // The diffuse keeps what the specular layer does not reflect.
         let (e_spec, p_spec, p_trans) = self.lobe_weights(wo.z);
+        let (coat, pdf_coat, p_coat) = if self.has_coat() {
+            let (value, pdf) = self.eval_pdf_coat(wo, wi);
+            (value, pdf, self.coat_probability(wo.z, e_spec))
+        } else {
+            (0.0, 0.0, 0.0)
+        };
         let diffuse = (1.0 - m) * (1.0 - e_spec) * self.diffuse_color() * FRAC_1_PI;
         let pdf_diffuse = (1.0 - p_spec - p_trans) * cosine_hemisphere_pdf(wi.z);
         let h = (wo + wi).normalize();
@@ -528,7 +611,10 @@ impl Material {
             f += dg * m * (self.base_color + (Vec3::ONE - self.base_color) * c5);
         }
         let pdf_specular = d / ((1.0 + lambda_o) * 4.0 * wo.z);
-        (f, pdf_diffuse + p_spec * pdf_specular)
+        (
+            f + Vec3::splat(coat),
+            (1.0 - p_coat) * (pdf_diffuse + p_spec * pdf_specular) + p_coat * pdf_coat,
+        )
     }
 
     /// Draws `wi`: the lobe by `u_lobe`, then the direction by `u`.
@@ -545,10 +631,18 @@ impl Material {
         if wo.z <= 0.0 {
             return None;
         }
-        if !self.has_specular() && !self.transmits_rough() {
+        if !self.has_specular() && !self.transmits_rough() && !self.has_coat() {
             return Some(sample_cosine_hemisphere(u));
         }
-        let (_, p_spec, p_trans) = self.lobe_weights(wo.z);
+        let (e, p_spec, p_trans) = self.lobe_weights(wo.z);
+        let p_coat = self.coat_probability(wo.z, e);
+        if u_lobe < p_coat {
+            let h = sample_gtr1(self.clearcoat_alpha, u);
+            let wi = 2.0 * wo.dot(h) * h - wo;
+            return (wi.z > 0.0).then_some(wi);
+        }
+        // The rest's lobes by `u_lobe` stretched back over [0, 1).
+        let u_lobe = ((u_lobe - p_coat) / (1.0 - p_coat)).min(crate::sampling::ONE_BELOW);
         if u_lobe < p_spec + p_trans {
             let h = sample_ggx_vndf(wo, self.alpha, u);
             let wi = 2.0 * wo.dot(h) * h - wo;
@@ -678,6 +772,26 @@ fn albedo_table() -> Vec<[f32; 2]> {
         }
     }
     table
+}
+
+/// Berry's GTR1 (Burley 2012, the Disney clear coat; Cycles' `D_GTR1`):
+/// `D(h) = (α² − 1) / (π·ln α²·(1 + (α² − 1)·cos² θh))`, for `α` in (0, 1).
+fn gtr1_d(cos_h: f32, alpha: f32) -> f32 {
+    if cos_h <= 0.0 {
+        return 0.0;
+    }
+    let a2 = alpha * alpha;
+    (a2 - 1.0) / (PI * a2.ln() * (1.0 + (a2 - 1.0) * cos_h * cos_h))
+}
+
+/// A GTR1 normal with density `D(h)·cos θh` (the inverse of its cumulative distribution in
+/// `cos² θh`): `cos² θh = (1 − α^(2(1 − u)))/(1 − α²)`.
+fn sample_gtr1(alpha: f32, u: Vec2) -> Vec3 {
+    let a2 = alpha * alpha;
+    let cos2 = ((1.0 - a2.powf(1.0 - u.x)) / (1.0 - a2)).clamp(0.0, 1.0);
+    let sin = (1.0 - cos2).sqrt();
+    let (sin_phi, cos_phi) = sin_cos_turn(u.y);
+    Vec3::new(sin * cos_phi, sin * sin_phi, cos2.sqrt())
 }
 
 /// GGX normal distribution.

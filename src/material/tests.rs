@@ -35,6 +35,16 @@ fn desc(metallic: f32, roughness: f32, base: Vec3) -> MaterialDesc {
     }
 }
 
+/// Blender 3.4's export of a Principled BSDF with *Specular* 0 (a Lambertian base) and
+/// *Clearcoat* `clearcoat` of roughness `roughness`.
+fn coated(clearcoat: f32, roughness: f32, base: Vec3) -> MaterialDesc {
+    MaterialDesc {
+        clearcoat,
+        clearcoat_roughness: roughness,
+        ..blender_specular_zero(base)
+    }
+}
+
 /// Blender 3.4's export of Principled *Specular* 0: `specularColorFactor` [0, 0, 0], no
 /// `specularFactor` (so 1), and the Principled IOR.
 fn blender_specular_zero(base: Vec3) -> MaterialDesc {
@@ -82,6 +92,8 @@ fn sample_pdf_matches_eval_pdf() {
             ior: 1.0,
             ..MaterialDesc::clear_glass("frosted without a layer")
         },
+        coated(0.6, 0.3, Vec3::new(0.5, 0.1, 0.1)),
+        coated(1.0, 0.05, Vec3::ZERO),
     ]);
     for d in &configurations {
         let mat = Material::from_desc(d);
@@ -127,6 +139,7 @@ fn pdf_integrates_to_at_most_one() {
         desc(0.0, 1.0, Vec3::splat(0.5)),
         desc(0.0, 0.6, Vec3::splat(0.5)),
         desc(1.0, 0.7, Vec3::splat(0.5)),
+        coated(1.0, 0.6, Vec3::ZERO),
     ] {
         let mat = Material::from_desc(&d);
         for cos_o in [1.0f32, 0.5, 0.1] {
@@ -564,6 +577,12 @@ fn sampled_directions_follow_the_evaluated_pdf() {
         base_color: Vec3::new(0.9, 0.7, 0.5),
         ..MaterialDesc::clear_glass("frosted")
     });
+    // Clear coats: over black (the coat draws nine in ten directions) and over a diffuse base.
+    layered.extend([
+        coated(1.0, 0.3, Vec3::ZERO),
+        coated(1.0, 0.6, Vec3::ZERO),
+        coated(0.5, 0.4, Vec3::splat(0.05)),
+    ]);
     let mut materials: Vec<(String, Material)> = layered
         .iter()
         .map(|d| (format!("{d:?}"), Material::from_desc(d)))
@@ -613,6 +632,86 @@ fn sampled_directions_follow_the_evaluated_pdf() {
         200_000,
     );
     assert!(stat > critical, "a wrong IOR passed: {stat} < {critical}");
+    // A coat's roughness 10% off.
+    let (mat, wrong) = (
+        Material::from_desc(&coated(1.0, 0.3, Vec3::ZERO)),
+        Material::from_desc(&coated(1.0, 0.33, Vec3::ZERO)),
+    );
+    let (stat, critical) = chi_square(
+        |wi| wrong.eval_pdf(wo, wi).1,
+        || mat.sample_direction(wo, rng.uniform(), rng.uniform2()),
+        200_000,
+    );
+    assert!(
+        stat > critical,
+        "a coat roughness 10% off passed: {stat} < {critical}"
+    );
+}
+
+/// Cycles 3.4's clear coat closure, transcribed from `bsdf_microfacet_ggx_eval_reflect` for
+/// `CLOSURE_BSDF_MICROFACET_GGX_CLEARCOAT_ID` (and `D_GTR1`, `fresnel_dielectric_cos`,
+/// `interpolate_fresnel_color` with `cspec0` 0.04 at IOR 1.5, which is the exact Fresnel):
+/// its `eval` over `cos θi`, so the BRDF.
+fn cycles_clearcoat(wo: Vec3, wi: Vec3, clearcoat: f64, roughness: f64) -> f64 {
+    let (cos_no, cos_ni) = (wo.z as f64, wi.z as f64);
+    let m = (wo + wi).normalize();
+    let alpha = (roughness * roughness).clamp(0.0, 1.0);
+    let cos_m = m.z as f64;
+    let a2 = alpha * alpha;
+    let d = (a2 - 1.0) / (std::f64::consts::PI * a2.ln() * (1.0 + (a2 - 1.0) * cos_m * cos_m));
+    let alpha2 = 0.0625;
+    let g1 = |c: f64| 2.0 / (1.0 + (1.0 + alpha2 * (1.0 - c * c) / (c * c)).sqrt());
+    let g = g1(cos_no) * g1(cos_ni);
+    let fresnel = |cosi: f64, eta: f64| {
+        let c = cosi.abs();
+        let g = eta * eta - 1.0 + c * c;
+        if g <= 0.0 {
+            return 1.0;
+        }
+        let g = g.sqrt();
+        let a = (g - c) / (g + c);
+        let b = (c * (g + c) - 1.0) / (c * (g - c) + 1.0);
+        0.5 * a * a * (1.0 + b * b)
+    };
+    let f = 0.25 * clearcoat * fresnel(wi.dot(m) as f64, 1.5);
+    let common = d * 0.25 / cos_no;
+    f * g * common / cos_ni
+}
+
+/// Over a black base without a specular layer, the material is the coat alone: its BRDF is
+/// Cycles 3.4's clear coat closure (transcribed above) at random directions, roughnesses and
+/// weights, to 1e-4 of the larger. The coat adds to the base (as Cycles' does): over a white
+/// Lambertian base the albedo is 1 plus the coat's own, which is at most a quarter of the
+/// Fresnel's largest value over the lobe.
+#[test]
+fn the_clear_coat_is_cycles_closure() {
+    let mut rng = Rng::new(7, 3);
+    for _ in 0..2000 {
+        let (wo, wi) = random_pair(&mut rng);
+        let (clearcoat, roughness) = (rng.uniform(), 0.05 + 0.95 * rng.uniform());
+        let mat = Material::from_desc(&coated(clearcoat, roughness, Vec3::ZERO));
+        let ours = mat.eval_pdf(wo, wi).0;
+        let cycles = cycles_clearcoat(wo, wi, clearcoat as f64, roughness as f64);
+        assert!(ours.x == ours.y && ours.y == ours.z);
+        assert!(
+            (ours.x as f64 - cycles).abs() <= 1e-4 * cycles.max(1.0),
+            "wo {wo} wi {wi} coat {clearcoat} r {roughness}: {} against Cycles' {cycles}",
+            ours.x
+        );
+    }
+    let white = Material::from_desc(&coated(1.0, 0.3, Vec3::ONE));
+    let coat = Material::from_desc(&coated(1.0, 0.3, Vec3::ZERO));
+    for cos_o in [1.0f32, 0.5, 0.1] {
+        let wo = at(cos_o);
+        let (total, se_total) = albedo(&white, wo, &mut rng, 200_000);
+        let (alone, se_alone) = albedo(&coat, wo, &mut rng, 200_000);
+        // Two independent estimates: 4 standard errors of their difference.
+        let se = (se_total * se_total + se_alone * se_alone).sqrt();
+        assert!(
+            (total - 1.0 - alone).abs() < 4.0 * se && alone < 0.25,
+            "cos {cos_o}: {total} ± {se_total}, the coat alone {alone} ± {se_alone}"
+        );
+    }
 }
 
 fn volume_desc() -> crate::asset::desc::VolumeDesc {

@@ -68,6 +68,7 @@ const SPECULAR_EXTENSION: &str = "KHR_materials_specular";
 const IOR_EXTENSION: &str = "KHR_materials_ior";
 const TRANSMISSION_EXTENSION: &str = "KHR_materials_transmission";
 const VOLUME_EXTENSION: &str = "KHR_materials_volume";
+const CLEARCOAT_EXTENSION: &str = "KHR_materials_clearcoat";
 /// Width over height of a perspective camera without `aspectRatio`.
 const DEFAULT_ASPECT: f32 = 4.0 / 3.0;
 

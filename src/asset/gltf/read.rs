@@ -885,6 +885,55 @@ pub(super) fn material_desc(
             }
         }
     }
+    let (mut clearcoat, mut clearcoat_roughness) = (0.0, 0.0);
+    if let Some(extension) = extension(CLEARCOAT_EXTENSION)? {
+        let field = |key: &str| format!("{at}, extensions.{CLEARCOAT_EXTENSION}.{key}");
+        let unit = |key: &str| -> Result<f32, GltfError> {
+            let Some(value) = extension.get(key) else {
+                return Ok(0.0);
+            };
+            let x = number(file, &field(key), value)?;
+            if !(0.0..=1.0).contains(&x) {
+                return Err(invalid(
+                    file,
+                    field(key),
+                    format!("must be in [0, 1], found {value}"),
+                ));
+            }
+            Ok(x)
+        };
+        clearcoat = unit("clearcoatFactor")?;
+        clearcoat_roughness = unit("clearcoatRoughnessFactor")?;
+        if let Some(info) = extension.get("clearcoatTexture") {
+            let at = field("clearcoatTexture");
+            textures.clearcoat = Some(doc.texture_ref(info, &at, images)?);
+        }
+        if let Some(info) = extension.get("clearcoatRoughnessTexture") {
+            let at = field("clearcoatRoughnessTexture");
+            textures.clearcoat_roughness = Some(doc.texture_ref(info, &at, images)?);
+        }
+        let coated = clearcoat > 0.0;
+        if coated && extension.contains_key("clearcoatNormalTexture") {
+            warnings.push(format!(
+                "{}: {at}: extensions.{CLEARCOAT_EXTENSION}.clearcoatNormalTexture is not read:                  the coat takes the surface's shading normal",
+                file.display()
+            ));
+        } else if coated && textures.normal.is_some() {
+            warnings.push(format!(
+                "{}: {at}: the clear coat follows the normal map (Cycles' coat takes the                  unmapped normal unless its Clearcoat Normal is linked)",
+                file.display()
+            ));
+        }
+        if coated && volume.is_some() {
+            warnings.push(format!(
+                "{}: {at}: a clear coat over a refracting volume (KHR_materials_volume) is                  not rendered",
+                file.display()
+            ));
+            clearcoat = 0.0;
+            textures.clearcoat = None;
+            textures.clearcoat_roughness = None;
+        }
+    }
     let emits = (emissive_factor * emissive_strength).max_element() > 0.0;
     if transmission > 0.0 && emits {
         warnings.push(format!(
@@ -908,6 +957,8 @@ pub(super) fn material_desc(
         ior,
         transmission,
         volume,
+        clearcoat,
+        clearcoat_roughness,
         double_sided: m.double_sided,
         alpha,
         alpha_mode,
@@ -970,6 +1021,8 @@ fn core_textures(
         specular: None,
         specular_color: None,
         transmission: None,
+        clearcoat: None,
+        clearcoat_roughness: None,
     })
 }
 

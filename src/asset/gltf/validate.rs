@@ -66,14 +66,15 @@ pub(super) fn parse_document(file: &Path, json_bytes: &[u8]) -> Result<json::Roo
 }
 
 /// The extensions that are read: emissive strength, the specular layer's factors, IOR,
-/// transmission and volume change the materials, quantized attributes are read as normalised
-/// integers.
-pub(super) const READ_EXTENSIONS: [&str; 8] = [
+/// transmission, volume and clear coat change the materials, quantized attributes are read as
+/// normalised integers.
+pub(super) const READ_EXTENSIONS: [&str; 9] = [
     EMISSIVE_STRENGTH_EXTENSION,
     SPECULAR_EXTENSION,
     IOR_EXTENSION,
     TRANSMISSION_EXTENSION,
     VOLUME_EXTENSION,
+    CLEARCOAT_EXTENSION,
     "KHR_mesh_quantization",
     "KHR_lights_punctual",
     TEXTURE_TRANSFORM_EXTENSION,
@@ -284,7 +285,9 @@ pub(super) fn check_material(
         && m.emissive_strength.is_finite()
         && m.specular_factor.is_finite()
         && m.specular_color.is_finite()
-        && m.ior.is_finite();
+        && m.ior.is_finite()
+        && m.clearcoat.is_finite()
+        && m.clearcoat_roughness.is_finite();
     let negative = m.emissive_factor.min_element() < 0.0
         || m.emissive_strength < 0.0
         || m.specular_color.min_element() < 0.0;
@@ -300,6 +303,13 @@ pub(super) fn check_material(
     }
     if !(m.ior == 0.0 || m.ior >= 1.0) {
         return Err(invalid(file, at, "ior is neither 0 nor at least 1"));
+    }
+    if !(0.0..=1.0).contains(&m.clearcoat) || !(0.0..=1.0).contains(&m.clearcoat_roughness) {
+        return Err(invalid(
+            file,
+            at,
+            "clear coat or its roughness is not in [0, 1]",
+        ));
     }
     Ok(())
 }

@@ -487,6 +487,30 @@ pub(super) fn export_material(
             .others
             .insert(VOLUME_EXTENSION.to_owned(), Value::Object(volume));
     }
+    if m.has_clearcoat_extension() {
+        used.push(CLEARCOAT_EXTENSION);
+        let mut coat = Map::new();
+        coat.insert("clearcoatFactor".to_owned(), json_f32(m.clearcoat));
+        coat.insert(
+            "clearcoatRoughnessFactor".to_owned(),
+            json_f32(m.clearcoat_roughness),
+        );
+        if let Some(r) = &t.clearcoat {
+            coat.insert(
+                "clearcoatTexture".to_owned(),
+                textures.info_json(r, &mut used),
+            );
+        }
+        if let Some(r) = &t.clearcoat_roughness {
+            coat.insert(
+                "clearcoatRoughnessTexture".to_owned(),
+                textures.info_json(r, &mut used),
+            );
+        }
+        extensions
+            .others
+            .insert(CLEARCOAT_EXTENSION.to_owned(), Value::Object(coat));
+    }
     let has_material_extension =
         !extensions.others.is_empty() || extensions.emissive_strength.is_some();
     let (alpha_mode, alpha_cutoff) = match m.alpha_mode {
