@@ -170,6 +170,15 @@ impl<'t, T: Tracer> ShadowCache<'t, T> {
             last: Cell::new(NO_OCCLUDER),
         }
     }
+
+    /// Keeps the blocker `found`, if any, as the next query's guess.
+    #[inline(always)]
+    fn remember(&self, found: Option<u32>) -> Option<u32> {
+        if let Some(id) = found {
+            self.last.set(id);
+        }
+        found
+    }
 }
 
 impl<T: Tracer> Tracer for ShadowCache<'_, T> {
@@ -201,25 +210,19 @@ impl<T: Tracer> Tracer for ShadowCache<'_, T> {
         _: u32,
         pass: &mut dyn FnMut(&Hit) -> bool,
     ) -> Option<u32> {
-        let found = self
-            .tracer
-            .blocker_past(origin, dir, segment, self.last.get(), pass);
-        if let Some(id) = found {
-            self.last.set(id);
-        }
-        found
+        self.remember(
+            self.tracer
+                .blocker_past(origin, dir, segment, self.last.get(), pass),
+        )
     }
 
     /// The guess is always the last blocker (the renderer never has one of its own).
     #[inline(always)]
     fn occluder(&self, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32, _: u32) -> Option<u32> {
-        let found = self
-            .tracer
-            .occluder(origin, dir, tmin, tmax, self.last.get());
-        if let Some(id) = found {
-            self.last.set(id);
-        }
-        found
+        self.remember(
+            self.tracer
+                .occluder(origin, dir, tmin, tmax, self.last.get()),
+        )
     }
 }
 
