@@ -597,7 +597,8 @@ impl Scene {
     }
 
     /// Whether a window lacks the guided table the environment calls for (see
-    /// [`Self::with_portals_deferred`]), or an `auto` alpha is not measured yet.
+    /// [`Self::with_portals_deferred`]), or an `auto` alpha or the enclosures' boxes are not
+    /// measured yet.
     pub fn lacks_tables(&self) -> bool {
         let environment = self.environment.as_deref();
         self.windows.iter().any(|w| w.lacks_table(environment))
