@@ -29,7 +29,7 @@
 //! F(wi·h)·D_GTR1(h)·G1(wo)·G1(wi) / (4 cos θo cos θi)`, with the exact Fresnel of IOR 1.5,
 //! Berry's GTR1 distribution of alpha = coat roughness², and Smith's separable masking of a
 //! fixed alpha 0.25. It takes nothing from the base, so a white base under a full coat
-//! reflects up to `1 + 0.25·E_coat` (`docs/method.md` §7). The glTF extension's own text
+//! reflects up to `1 + 0.25·E_coat` (`docs/method.md` §6.1). The glTF extension's own text
 //! defines the coat differently (a GGX layer that darkens the base by its Fresnel at `n·wo`).
 //!
 //! Energy conservation by construction: the diffuse loses exactly the directional albedo

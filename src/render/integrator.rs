@@ -1209,6 +1209,7 @@ impl<'a> Integrator<'a> {
     /// segment `o + t·d`, `t` in `(0, tmax)`, and how many panes it crosses: zero if
     /// anything else stands there (or more than [`MAX_PANE_CROSSINGS`] panes). Out of line, as
     /// [`Self::cross_panes`].
+    ///
     /// One traversal offers each surface on the segment: a pane multiplies its transmittance
     /// in (the product does not depend on the order) and lets the ray on; anything else stops
     /// it. (Three closest-hit traversals per pane's two faces cost a pane 31% of antishadow's
