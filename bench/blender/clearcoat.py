@@ -33,9 +33,9 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import bpy  # noqa: E402
 import numpy as np  # noqa: E402
 from common import (  # noqa: E402
-    alpha_mask, black_world, cycles_two_seeds, export_gltf, gltf_json, lambert_material,
-    look_rotation, print_region_table, region_stats, run_portalview, script_argv,
-    set_resolution, write_json,
+    alpha_mask, black_world, cycles_two_seeds, diffuse_like, export_gltf, gltf_json,
+    lambert_material, look_rotation, material_output, print_region_table, region_stats,
+    run_portalview, script_argv, set_resolution, write_json,
 )
 
 ROUGHNESS = (0.05, 0.25, 0.6)
@@ -102,15 +102,13 @@ def coat_as_cycles_closures():
             continue
         nodes, links = m.node_tree.nodes, m.node_tree.links
         p = nodes["Principled BSDF"]
-        d = nodes.new("ShaderNodeBsdfDiffuse")
-        d.inputs["Color"].default_value = p.inputs["Base Color"].default_value
+        d = diffuse_like(m, p)
         p.inputs["Base Color"].default_value = (0.0, 0.0, 0.0, 1.0)
         p.inputs["Specular"].default_value = 0.0
         add = nodes.new("ShaderNodeAddShader")
         links.new(d.outputs["BSDF"], add.inputs[0])
         links.new(p.outputs["BSDF"], add.inputs[1])
-        output = [n for n in nodes if n.type == "OUTPUT_MATERIAL"][0]
-        links.new(add.outputs["Shader"], output.inputs["Surface"])
+        links.new(add.outputs["Shader"], material_output(m).inputs["Surface"])
 
 
 def main():

@@ -179,16 +179,27 @@ def principled_to_diffuse():
             continue
         nodes, links = m.node_tree.nodes, m.node_tree.links
         p = nodes["Principled BSDF"]
-        d = nodes.new("ShaderNodeBsdfDiffuse")
-        d.inputs["Color"].default_value = p.inputs["Base Color"].default_value
-        for link in list(p.inputs["Base Color"].links):
-            links.new(link.from_socket, d.inputs["Color"])
-        for link in list(p.inputs["Normal"].links):
-            links.new(link.from_socket, d.inputs["Normal"])
-        # The output by type: an imported material's may have another name.
-        output = [n for n in nodes if n.type == "OUTPUT_MATERIAL"][0]
-        links.new(d.outputs["BSDF"], output.inputs["Surface"])
+        d = diffuse_like(m, p)
+        links.new(d.outputs["BSDF"], material_output(m).inputs["Surface"])
         nodes.remove(p)
+
+
+def diffuse_like(m, p):
+    """A new Diffuse BSDF in material m with Principled BSDF p's colour (value and link) and
+    Normal link."""
+    nodes, links = m.node_tree.nodes, m.node_tree.links
+    d = nodes.new("ShaderNodeBsdfDiffuse")
+    d.inputs["Color"].default_value = p.inputs["Base Color"].default_value
+    for link in list(p.inputs["Base Color"].links):
+        links.new(link.from_socket, d.inputs["Color"])
+    for link in list(p.inputs["Normal"].links):
+        links.new(link.from_socket, d.inputs["Normal"])
+    return d
+
+
+def material_output(m):
+    """Material m's output node, by type: an imported material's may have another name."""
+    return [n for n in m.node_tree.nodes if n.type == "OUTPUT_MATERIAL"][0]
 
 
 # --- rendering and reading images -------------------------------------------------------------

@@ -767,14 +767,7 @@ pub(super) fn material_desc(
     if let Some(specular) = extension(SPECULAR_EXTENSION)? {
         let field = |key: &str| format!("{at}, extensions.{SPECULAR_EXTENSION}.{key}");
         if let Some(value) = specular.get("specularFactor") {
-            specular_factor = number(file, &field("specularFactor"), value)?;
-            if !(0.0..=1.0).contains(&specular_factor) {
-                return Err(invalid(
-                    file,
-                    field("specularFactor"),
-                    format!("must be in [0, 1], found {value}"),
-                ));
-            }
+            specular_factor = unit_number(file, &field("specularFactor"), value)?;
         }
         if let Some(value) = specular.get("specularColorFactor") {
             let at = field("specularColorFactor");
@@ -811,14 +804,7 @@ pub(super) fn material_desc(
     if let Some(extension) = extension(TRANSMISSION_EXTENSION)? {
         let field = |key: &str| format!("{at}, extensions.{TRANSMISSION_EXTENSION}.{key}");
         if let Some(value) = extension.get("transmissionFactor") {
-            transmission = number(file, &field("transmissionFactor"), value)?;
-            if !(0.0..=1.0).contains(&transmission) {
-                return Err(invalid(
-                    file,
-                    field("transmissionFactor"),
-                    format!("must be in [0, 1], found {value}"),
-                ));
-            }
+            transmission = unit_number(file, &field("transmissionFactor"), value)?;
         }
         if let Some(info) = extension.get("transmissionTexture") {
             let at = field("transmissionTexture");
@@ -888,19 +874,9 @@ pub(super) fn material_desc(
     let (mut clearcoat, mut clearcoat_roughness) = (0.0, 0.0);
     if let Some(extension) = extension(CLEARCOAT_EXTENSION)? {
         let field = |key: &str| format!("{at}, extensions.{CLEARCOAT_EXTENSION}.{key}");
-        let unit = |key: &str| -> Result<f32, GltfError> {
-            let Some(value) = extension.get(key) else {
-                return Ok(0.0);
-            };
-            let x = number(file, &field(key), value)?;
-            if !(0.0..=1.0).contains(&x) {
-                return Err(invalid(
-                    file,
-                    field(key),
-                    format!("must be in [0, 1], found {value}"),
-                ));
-            }
-            Ok(x)
+        let unit = |key: &str| match extension.get(key) {
+            Some(value) => unit_number(file, &field(key), value),
+            None => Ok(0.0),
         };
         clearcoat = unit("clearcoatFactor")?;
         clearcoat_roughness = unit("clearcoatRoughnessFactor")?;
@@ -1052,6 +1028,19 @@ pub(super) fn number(file: &Path, at: &str, value: &Value) -> Result<f32, GltfEr
             format!("must be a finite number, found {value}"),
         )),
     }
+}
+
+/// [`number`], and in [0, 1] (a factor of the material extensions).
+fn unit_number(file: &Path, at: &str, value: &Value) -> Result<f32, GltfError> {
+    let x = number(file, at, value)?;
+    if !(0.0..=1.0).contains(&x) {
+        return Err(invalid(
+            file,
+            at,
+            format!("must be in [0, 1], found {value}"),
+        ));
+    }
+    Ok(x)
 }
 
 /// A node's `extras` if they are a JSON object.
