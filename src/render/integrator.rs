@@ -373,6 +373,20 @@ impl<'a> Integrator<'a> {
         }
     }
 
+    /// Whether paths may meet thin glass: `GLASS` is false in the copy of the path that scenes
+    /// without glass or volumes run ([`Self::radiance_from`]), which then has none of glass's
+    /// branches.
+    #[inline(always)]
+    fn has_panes<const GLASS: bool>(&self) -> bool {
+        GLASS && self.panes
+    }
+
+    /// Whether paths may meet volumes: as [`Self::has_panes`].
+    #[inline(always)]
+    fn has_volumes<const GLASS: bool>(&self) -> bool {
+        GLASS && self.volumes
+    }
+
     pub fn settings(&self) -> RenderSettings {
         self.settings
     }
@@ -481,7 +495,13 @@ impl<'a> Integrator<'a> {
         contexts: &mut PathContexts,
     ) -> Vec3 {
         stats.camera_rays += 1;
-        self.path(tracer, origin, dir, camera_hit, false, rng, stats, contexts)
+        // Two copies of the path: scenes without glass run the one without its branches
+        // (with them, those scenes' samples took 3–5% longer: docs/performance.md).
+        if self.panes || self.volumes {
+            self.path::<T, true>(tracer, origin, dir, camera_hit, false, rng, stats, contexts)
+        } else {
+            self.path::<T, false>(tracer, origin, dir, camera_hit, false, rng, stats, contexts)
+        }
     }
 
     /// The radiance a path gathers from `origin` along `dir`, whose first hit may be traced
@@ -490,7 +510,7 @@ impl<'a> Integrator<'a> {
     /// ([`Self::cross_panes`]).
     #[allow(clippy::too_many_arguments)]
     #[inline(always)]
-    fn path<T: Tracer>(
+    fn path<T: Tracer, const GLASS: bool>(
         &self,
         tracer: &T,
         origin: Vec3,
@@ -522,7 +542,7 @@ impl<'a> Integrator<'a> {
                     ctx: picked.then_some(if depth % 2 == 0 { &*odd } else { &*even }),
                     bsdf_pdf,
                 });
-                l += beta * self.emission_along(tracer, o, d, prev.as_ref(), stats);
+                l += beta * self.emission_along::<T, GLASS>(tracer, o, d, prev.as_ref(), stats);
                 break;
             }
             if depth > 0 {
@@ -532,7 +552,7 @@ impl<'a> Integrator<'a> {
                 Some(hit) => hit,
                 None => tracer.closest_hit(o, d, 0.0, f32::INFINITY),
             };
-            if self.panes && hit.is_some() && !std::mem::take(&mut at_pane) {
+            if self.has_panes::<GLASS>() && hit.is_some() && !std::mem::take(&mut at_pane) {
                 let last = depth == self.settings.max_depth;
                 // A camera ray in the open traces its pane reflections beside the crossing.
                 let split = (depth == 0 && sigma == Vec3::ZERO).then_some(&mut *stats);
@@ -556,7 +576,7 @@ impl<'a> Integrator<'a> {
                     }
                 }
             }
-            if self.volumes && sigma != Vec3::ZERO {
+            if self.has_volumes::<GLASS>() && sigma != Vec3::ZERO {
                 // Inside a volume: absorbed on the way (all of it, if it never leaves).
                 match &hit {
                     Some(h) => beta *= beer_lambert(sigma, h.t),
@@ -607,7 +627,7 @@ impl<'a> Integrator<'a> {
             }
             let material = &geometry.materials[tri.material as usize];
             // A volume's smooth boundary is crossed at any depth: it is not a path vertex.
-            let volume = self.volumes && material.volume.is_some();
+            let volume = self.has_volumes::<GLASS>() && material.volume.is_some();
             if (depth == self.settings.max_depth && !volume) || material.is_black() {
                 break;
             }
@@ -626,7 +646,7 @@ impl<'a> Integrator<'a> {
             }
             // A volume's boundary: its dielectric with the probability of its share, or the rest.
             let component;
-            if self.volumes {
+            if self.has_volumes::<GLASS>() {
                 shading.sigma = sigma;
                 shading.sigma_below = sigma;
             }
@@ -685,7 +705,7 @@ impl<'a> Integrator<'a> {
 
             // Next-event estimation through the chosen strategy, weighted against the
             // continuation's density.
-            let direct = self.sample_direct(
+            let direct = self.sample_direct::<T, GLASS>(
                 tracer,
                 &shading,
                 rng,
@@ -735,7 +755,7 @@ impl<'a> Integrator<'a> {
                 beta /= survive;
             }
             previous = Some((shading.x, shading.pick_normal(), picked, pdf));
-            if self.volumes {
+            if self.has_volumes::<GLASS>() {
                 sigma = shading.medium_along(wi_local);
             }
             o = origin;
@@ -750,7 +770,7 @@ impl<'a> Integrator<'a> {
     /// for scenes whose lights are all polygons: the nearest light polygon along the ray is
     /// found directly, and one occlusion ray checks that nothing lies before it.
     #[inline(always)]
-    fn emission_along<T: Tracer>(
+    fn emission_along<T: Tracer, const GLASS: bool>(
         &self,
         tracer: &T,
         o: Vec3,
@@ -776,7 +796,7 @@ impl<'a> Integrator<'a> {
         // Stop short of the light so that its own triangles do not occlude it. A BSDF path:
         // it crosses panes whatever shadow rays do.
         let tmax = t * (1.0 - 1e-4) - Self::shadow_gap(self.scale);
-        let (transmittance, crossings) = if self.panes {
+        let (transmittance, crossings) = if self.has_panes::<GLASS>() {
             self.through_panes(tracer, o, d, tmax)
         } else if tracer.occluded(o, d, 0.0, tmax) {
             (Vec3::ZERO, 0)
@@ -899,7 +919,7 @@ impl<'a> Integrator<'a> {
     /// the MIS-weighted contribution, or `None` when no light was picked. Leaves an area
     /// light's context in `ctx` for later MIS (a lamp's sample leaves it untouched).
     #[inline(always)]
-    fn sample_direct<T: Tracer>(
+    fn sample_direct<T: Tracer, const GLASS: bool>(
         &self,
         tracer: &T,
         s: &Shading,
@@ -915,13 +935,13 @@ impl<'a> Integrator<'a> {
                 stats.no_portal += 1;
                 stats.count_technique(Technique::Light);
                 return Some(Direct {
-                    l: self.lamp_direct(tracer, lamp, p, s, stats),
+                    l: self.lamp_direct::<T, GLASS>(tracer, lamp, p, s, stats),
                     context_filled: false,
                 });
             }
             (PickedLight::Environment, p) => {
                 return Some(Direct {
-                    l: self.sky_direct(tracer, p, s, u_technique, u, stats),
+                    l: self.sky_direct::<T, GLASS>(tracer, p, s, u_technique, u, stats),
                     context_filled: false,
                 });
             }
@@ -930,7 +950,7 @@ impl<'a> Integrator<'a> {
         let start = timed.then(Instant::now);
         self.lights.fill_context(self.scene, light, s.x, ctx);
         if self.settings.mixture == Mixture::EachShare && ctx.both_shares_draw() {
-            let l = self.each_share_direct(
+            let l = self.each_share_direct::<T, GLASS>(
                 tracer,
                 (light, light_prob),
                 s,
@@ -957,7 +977,7 @@ impl<'a> Integrator<'a> {
         let l = match &sample {
             Some(sample) => {
                 stats.count_technique(sample.technique);
-                self.direct(tracer, sample, light, light_prob, s, stats)
+                self.direct::<T, GLASS>(tracer, sample, light, light_prob, s, stats)
             }
             None => {
                 stats.empty_samples += 1;
@@ -976,7 +996,7 @@ impl<'a> Integrator<'a> {
     /// `start` is the light-sampling timer, stopped here after both draws.
     #[allow(clippy::too_many_arguments)]
     #[inline(always)]
-    fn each_share_direct<T: Tracer>(
+    fn each_share_direct<T: Tracer, const GLASS: bool>(
         &self,
         tracer: &T,
         (light, light_prob): (usize, f32),
@@ -1003,7 +1023,8 @@ impl<'a> Integrator<'a> {
             match sample {
                 Some(sample) => {
                     stats.count_technique(sample.technique);
-                    l += share * self.direct(tracer, &sample, light, light_prob, s, stats);
+                    l += share
+                        * self.direct::<T, GLASS>(tracer, &sample, light, light_prob, s, stats);
                 }
                 None => stats.empty_samples += 1,
             }
@@ -1015,7 +1036,7 @@ impl<'a> Integrator<'a> {
     /// incidence. A lamp is a delta light: BSDF sampling never finds it, so its sample's MIS
     /// weight is 1.
     #[inline(always)]
-    fn lamp_direct<T: Tracer>(
+    fn lamp_direct<T: Tracer, const GLASS: bool>(
         &self,
         tracer: &T,
         lamp: usize,
@@ -1044,11 +1065,11 @@ impl<'a> Integrator<'a> {
         } else {
             f32::INFINITY
         };
-        let mut transmittance = self.visibility(tracer, origin, sample.wi, tmax);
+        let mut transmittance = self.visibility::<T, GLASS>(tracer, origin, sample.wi, tmax);
         if transmittance == Vec3::ZERO {
             return Vec3::ZERO;
         }
-        if self.volumes {
+        if self.has_volumes::<GLASS>() {
             transmittance *= s.absorption(wi_local, sample.dist);
         }
         f * transmittance * sample.irradiance * wi_local.z.abs() / lamp_prob
@@ -1059,7 +1080,7 @@ impl<'a> Integrator<'a> {
     /// Always inlined, like the area lights' steps: out of line, it and its shadow ray were
     /// compiled for baseline x86-64, not for the renderer's instruction set.
     #[inline(always)]
-    fn sky_direct<T: Tracer>(
+    fn sky_direct<T: Tracer, const GLASS: bool>(
         &self,
         tracer: &T,
         env_prob: f32,
@@ -1102,7 +1123,7 @@ impl<'a> Integrator<'a> {
             stats.count_technique(sample.technique.technique());
             let light_pdf = env_prob * sample.pdf;
             l += share
-                * self.weighted(
+                * self.weighted::<T, GLASS>(
                     tracer,
                     s,
                     sample.wi,
@@ -1117,7 +1138,7 @@ impl<'a> Integrator<'a> {
 
     /// A light sample's contribution, weighted against BSDF sampling by the power heuristic.
     #[inline(always)]
-    fn direct<T: Tracer>(
+    fn direct<T: Tracer, const GLASS: bool>(
         &self,
         tracer: &T,
         sample: &LightSample,
@@ -1137,7 +1158,7 @@ impl<'a> Integrator<'a> {
         // Stop short of the light so that its own triangles do not occlude it.
         let tmax = dist * (1.0 - 1e-4) - Self::shadow_gap(self.scale);
         let light_pdf = light_prob * sample.pdf;
-        self.weighted(tracer, s, sample.wi, le, light_pdf, tmax, stats)
+        self.weighted::<T, GLASS>(tracer, s, sample.wi, le, light_pdf, tmax, stats)
     }
 
     /// Radiance `le` arriving along `wi`, drawn with density `light_pdf` (selection times
@@ -1146,7 +1167,7 @@ impl<'a> Integrator<'a> {
     /// the transmittance of the thin glass crossed ([`Self::visibility`]).
     #[allow(clippy::too_many_arguments)]
     #[inline(always)]
-    fn weighted<T: Tracer>(
+    fn weighted<T: Tracer, const GLASS: bool>(
         &self,
         tracer: &T,
         s: &Shading,
@@ -1170,11 +1191,11 @@ impl<'a> Integrator<'a> {
         }
         let bsdf_pdf = s.continuation.pdf(bsdf_pdf, wi);
         stats.shadow_rays += 1;
-        let mut transmittance = self.visibility(tracer, origin, wi, tmax);
+        let mut transmittance = self.visibility::<T, GLASS>(tracer, origin, wi, tmax);
         if transmittance == Vec3::ZERO {
             return Vec3::ZERO;
         }
-        if self.volumes {
+        if self.has_volumes::<GLASS>() {
             transmittance *= s.absorption(wi_local, tmax);
         }
         f * transmittance * le * wi_local.z.abs() * power_heuristic(light_pdf, bsdf_pdf) / light_pdf
@@ -1263,7 +1284,7 @@ impl<'a> Integrator<'a> {
     ) -> Vec3 {
         // Its own contexts: the camera path has filled none yet, but holds them borrowed.
         let mut contexts = PathContexts::new();
-        self.path(
+        self.path::<T, true>(
             tracer,
             o,
             d,
@@ -1280,8 +1301,14 @@ impl<'a> Integrator<'a> {
     /// straight-through transmittances of the panes it crosses (METHOD.md, *Thin glass*:
     /// the sample's pdf is unchanged, the panes are a filter on its radiance).
     #[inline(always)]
-    fn visibility<T: Tracer>(&self, tracer: &T, o: Vec3, d: Vec3, tmax: f32) -> Vec3 {
-        if self.panes && self.settings.glass == GlassShadows::Pass {
+    fn visibility<T: Tracer, const GLASS: bool>(
+        &self,
+        tracer: &T,
+        o: Vec3,
+        d: Vec3,
+        tmax: f32,
+    ) -> Vec3 {
+        if self.has_panes::<GLASS>() && self.settings.glass == GlassShadows::Pass {
             return self.through_panes(tracer, o, d, tmax).0;
         }
         if tracer.occluded(o, d, 0.0, tmax) {
