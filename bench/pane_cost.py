@@ -22,10 +22,14 @@ def efficiencies(out):
     """Antishadow's 1 / (relMSE x seconds) for each seed of one `compare --out` directory."""
     values = []
     for summary in sorted(pathlib.Path(out).glob("seed-*/summary.md")):
+        columns = None
         for line in summary.read_text().splitlines():
-            if line.startswith("| antishadow"):
-                cells = [c.strip() for c in line.split("|")]
-                seconds, relmse = float(cells[3]), float(cells[6])
+            cells = [c.strip() for c in line.split("|")]
+            if line.startswith("| strategy"):
+                columns = {name: i for i, name in enumerate(cells)}
+            elif line.startswith("| antishadow") and columns:
+                seconds = float(cells[columns["seconds"]])
+                relmse = float(cells[columns["relMSE"]])
                 values.append(1.0 / (relmse * seconds))
     if not values:
         raise SystemExit(f"no antishadow rows under {out}")

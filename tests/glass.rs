@@ -136,9 +136,10 @@ fn a_pane_without_its_fresnel_weight_is_detected() {
 /// A white furnace: a pane of white glass alone in a uniform sky of radiance 1, seen through
 /// by the camera. Each surface reflects `E` and passes `1 − E` (up to the albedo table's
 /// round-up), so every pixel is 1; the camera rays cross and trace the reflections beside
-/// (`Integrator::cross_panes`), and losing those gives 0.979 at IOR 1.33: the mean over the pane's pixels is within 4 standard
-/// errors (of the pixel means' spread) plus the table's 0.3% round-up on E ≈ 0.1 of 1. The
-/// depth (8) leaves the inter-reflections between the faces beyond it below 1e-6.
+/// (`Integrator::cross_panes`), and losing those gives 0.979 at IOR 1.33. The mean over the
+/// pane's pixels is within 4 standard errors (of the pixel means' spread) plus the table's
+/// 0.3% round-up on E ≈ 0.1 of 1. The depth (8) leaves the inter-reflections between the
+/// faces beyond it below 1e-6.
 #[test]
 fn a_pane_in_a_uniform_sky_is_a_white_furnace() {
     for ior in [1.33f32, 1.5, 2.4] {

@@ -310,16 +310,10 @@ const MAX_PANE_CROSSINGS: u32 = 32;
 
 /// What a BSDF path's ray does at the thin glass it meets ([`Integrator::cross_panes`]).
 enum Crossing {
-    /// It met `hit` (a surface, glass it stops at, or nothing), having crossed panes or not;
-    /// a camera ray's pane reflections gathered `reflected`.
-    Met {
-        hit: Option<Hit>,
-        crossed: bool,
-        reflected: Vec3,
-    },
-    /// Its weight went to zero, or it crossed too many panes: the path ends, with what its
-    /// pane reflections gathered.
-    Absorbed { reflected: Vec3 },
+    /// It met `hit` (a surface, glass it stops at, or nothing), having crossed panes or not.
+    Met { hit: Option<Hit>, crossed: bool },
+    /// Its weight went to zero, or it crossed too many panes: the path ends.
+    Absorbed,
 }
 
 /// Up to this many polygon lights, the last bounce intersects them directly.
@@ -555,18 +549,10 @@ impl<'a> Integrator<'a> {
             if self.has_panes::<GLASS>() && hit.is_some() && !std::mem::take(&mut at_pane) {
                 let last = depth == self.settings.max_depth;
                 // A camera ray in the open traces its pane reflections beside the crossing.
-                let split = (depth == 0 && sigma == Vec3::ZERO).then_some(&mut *stats);
+                let split = (depth == 0 && sigma == Vec3::ZERO).then_some((&mut *stats, &mut l));
                 match self.cross_panes(tracer, (o, d), hit, last, &mut beta, rng, split) {
-                    Crossing::Absorbed { reflected } => {
-                        l += reflected;
-                        break;
-                    }
-                    Crossing::Met {
-                        hit: next,
-                        crossed,
-                        reflected,
-                    } => {
-                        l += reflected;
+                    Crossing::Absorbed => break,
+                    Crossing::Met { hit: next, crossed } => {
                         hit = next;
                         // Light sampling through glass is off: what lies beyond takes the
                         // full weight.
@@ -1207,9 +1193,9 @@ impl<'a> Integrator<'a> {
     /// there (weighted by one over the rest) to make it a vertex of its reflection; at the
     /// `last` vertex, where only emission beyond counts, it always crosses.
     ///
-    /// A camera ray (`split`, with its stats) always crosses, weighted by the transmittance;
-    /// when the same roulette says "stop", the reflection's path is traced too, with the same
-    /// weight, and its radiance returned (`reflected`, path weight included). The expectation
+    /// A camera ray (`split`: its stats and radiance) always crosses, weighted by the
+    /// transmittance; when the same roulette says "stop", the reflection's path is traced too,
+    /// with the same weight, and its radiance (path weight included) added to the camera's. The expectation
     /// is the same, and the sky seen through a window loses the roulette's noise (about 4% of
     /// relative variance per face), while the dim room it reflects is traced about once in 25
     /// crossings. That took a pane's cost to antishadow from 29% to 17% (docs/performance.md).
@@ -1226,10 +1212,9 @@ impl<'a> Integrator<'a> {
         last: bool,
         beta: &mut Vec3,
         rng: &mut Sampler,
-        mut split: Option<&mut Stats>,
+        mut split: Option<(&mut Stats, &mut Vec3)>,
     ) -> Crossing {
         let mut crossings = 0;
-        let mut reflected = Vec3::ZERO;
         while let Some(h) = hit {
             let Some(transmittance) = self.pane_at(&h, d) else {
                 break;
@@ -1240,11 +1225,11 @@ impl<'a> Integrator<'a> {
                 transmittance.max_element().min(1.0)
             };
             let stops = p_pass < 1.0 && rng.uniform() >= p_pass;
-            match split.as_deref_mut() {
-                Some(stats) => {
+            match split.as_mut() {
+                Some((stats, l)) => {
                     if stops {
                         let weight = *beta / (1.0 - p_pass);
-                        reflected += weight * self.pane_reflection(tracer, (o, d), h, rng, stats);
+                        **l += weight * self.pane_reflection(tracer, (o, d), h, rng, stats);
                     }
                     *beta *= transmittance;
                 }
@@ -1256,7 +1241,7 @@ impl<'a> Integrator<'a> {
             }
             crossings += 1;
             if crossings > MAX_PANE_CROSSINGS || *beta == Vec3::ZERO {
-                return Crossing::Absorbed { reflected };
+                return Crossing::Absorbed;
             }
             // The same ray from the same origin, so `t` stays the distance to the vertex.
             let tmin = h.t + Self::epsilon(o + h.t * d, self.scale);
@@ -1265,7 +1250,6 @@ impl<'a> Integrator<'a> {
         Crossing::Met {
             hit,
             crossed: crossings > 0,
-            reflected,
         }
     }
 
