@@ -6,15 +6,17 @@ mod common;
 use common::*;
 use glam::Vec3;
 use portalview::asset::desc::{MaterialDesc, SceneDesc};
-use portalview::light::Strategy;
+use portalview::light::{Mixture, Selection, Strategy};
 use portalview::material::Material;
 use portalview::render::integrator::{Integrator, RenderSettings};
 use portalview::render::record::Recorder;
 use portalview::render::stats::Stats;
-use portalview::render::{Isa, Tiles, render, render_pass, render_tile, render_tile_isa};
+use portalview::render::{
+    Isa, Schedule, Tiles, render, render_pass, render_tile, render_tile_isa, render_tile_scheduled,
+};
 use portalview::sampling::{Rng, SamplerKind};
 use portalview::scene::Scene;
-use portalview::scene::bvh::{Bvh, BvhError};
+use portalview::scene::bvh::{Bvh, BvhError, Hit, Tracer};
 
 /// Brute-force closest hit over all triangles (Möller–Trumbore in f64).
 fn brute_force(tris: &[[Vec3; 3]], o: Vec3, d: Vec3) -> Option<(f32, usize)> {
@@ -346,6 +348,157 @@ fn instruction_set_variants_render_identical_pixels() {
                         assert_eq!(baseline_stats.rays(), stats.rays(), "{label}");
                     }
                 }
+            }
+        }
+    }
+}
+
+/// The BVH, counting the shadow rays it was given in packets ([`Tracer::occluders_each`]): how
+/// a test knows the staged schedule ran.
+struct CountingPackets<'b> {
+    bvh: &'b Bvh,
+    packed: std::cell::Cell<usize>,
+}
+
+impl Tracer for CountingPackets<'_> {
+    fn closest_hit(&self, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> Option<Hit> {
+        self.bvh.closest_hit(origin, dir, tmin, tmax)
+    }
+    fn occluder(&self, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32, guess: u32) -> Option<u32> {
+        Tracer::occluder(self.bvh, origin, dir, tmin, tmax, guess)
+    }
+    fn blocker_past(
+        &self,
+        origin: Vec3,
+        dir: Vec3,
+        segment: (f32, f32),
+        guess: u32,
+        pass: &mut dyn FnMut(&Hit) -> bool,
+    ) -> Option<u32> {
+        self.bvh.blocker_past(origin, dir, segment, guess, pass)
+    }
+    fn closest_hits(
+        &self,
+        origins: &[Vec3],
+        dirs: &[Vec3],
+        tmin: f32,
+        tmax: f32,
+        hits: &mut [Option<Hit>],
+    ) {
+        self.bvh.closest_hits(origins, dirs, tmin, tmax, hits);
+    }
+    fn occluders_each(
+        &self,
+        origins: &[Vec3],
+        dirs: &[Vec3],
+        tmin: f32,
+        tmaxes: &[f32],
+        guess: u32,
+        blocked: &mut [bool],
+    ) -> Option<u32> {
+        self.packed.set(self.packed.get() + origins.len());
+        self.bvh
+            .occluders_each(origins, dirs, tmin, tmaxes, guess, blocked)
+    }
+}
+
+/// The staged schedule (a packet's shadow rays queued with their contributions and traced
+/// together) renders the pixels of the one-path reference, bit for bit, and counts the same
+/// rays: on every built-in scene (textured too), with every strategy, sampler, mixture and
+/// light selection, for direct light and longer paths. The staged side must have traced its
+/// shadow rays in packets on every scene without glass, or it compared the reference with
+/// itself.
+#[test]
+fn staged_schedule_renders_the_reference_pixels() {
+    let isa = Isa::detect();
+    if isa == Isa::Baseline {
+        eprintln!("no AVX2: both schedules run one path at a time here");
+    }
+    let descs = portalview::asset::builtin::NAMES.iter().flat_map(|&name| {
+        let desc = portalview::asset::builtin::desc(name).unwrap();
+        let textured = portalview::asset::builtin::with_test_textures(desc.clone());
+        [
+            (name.to_string(), desc),
+            (format!("{name}, textured"), textured),
+        ]
+    });
+    for (name, desc) in descs {
+        let scene = Scene::from_desc(desc, &name).unwrap();
+        let settings = Strategy::ALL.into_iter().flat_map(|strategy| {
+            [(1, SamplerKind::Sobol), (3, SamplerKind::Independent)]
+                .into_iter()
+                .flat_map(move |(max_depth, sampler)| {
+                    [
+                        (Mixture::OneSample, Selection::Tree),
+                        (Mixture::EachShare, Selection::Power),
+                    ]
+                    .map(|(mixture, selection)| RenderSettings {
+                        strategy,
+                        max_depth,
+                        sampler,
+                        mixture,
+                        selection,
+                        seed: 13,
+                        ..RenderSettings::default()
+                    })
+                })
+        });
+        for settings in settings {
+            let integrator = Integrator::new(&scene, settings);
+            let tiles = Tiles::new(24, 16);
+            let rays = scene.camera.rays(24.0 / 16.0);
+            let tracer = CountingPackets {
+                bvh: &scene.geometry.bvh,
+                packed: std::cell::Cell::new(0),
+            };
+            let render = |schedule| {
+                let mut stats = Stats::default();
+                let pixels: Vec<_> = (0..tiles.count())
+                    .flat_map(|tile| {
+                        render_tile_scheduled(
+                            isa,
+                            schedule,
+                            &integrator,
+                            &tracer,
+                            &rays,
+                            tiles,
+                            tile,
+                            0,
+                            &mut stats,
+                        )
+                    })
+                    .map(|p| p.to_array().map(f32::to_bits))
+                    .collect();
+                // Every count but the sampling time, which is measured.
+                (
+                    pixels,
+                    Stats {
+                        sampling_ns: 0,
+                        ..stats
+                    },
+                )
+            };
+            let label = format!("{name}, {settings:?}");
+            let (reference, reference_stats) = render(Schedule::Paths);
+            assert_eq!(tracer.packed.get(), 0, "{label}: the reference queued rays");
+            let (staged, staged_stats) = render(Schedule::Staged);
+            assert_eq!(reference.len(), staged.len(), "{label}");
+            if let Some(i) = (0..reference.len()).find(|&i| reference[i] != staged[i]) {
+                let bits = |p: [u32; 3]| p.map(f32::from_bits);
+                let (a, b) = (bits(reference[i]), bits(staged[i]));
+                panic!(
+                    "{label}: pixel {i} (in tile order): {a:?} one path at a time, {b:?} staged"
+                );
+            }
+            assert_eq!(reference_stats, staged_stats, "{label}");
+            let glass = scene.geometry.has_panes
+                || scene.geometry.materials.iter().any(|m| m.volume.is_some());
+            if isa != Isa::Baseline && !glass {
+                assert_eq!(
+                    tracer.packed.get() as u64,
+                    staged_stats.shadow_rays,
+                    "{label}: not every shadow ray went through the queue"
+                );
             }
         }
     }

@@ -6,6 +6,7 @@ use glam::Vec3;
 use std::time::Instant;
 
 use super::continuation::{Continuation, bounce_openings};
+use super::shadows::{ShadowQueue, Shadows, TraceNow};
 use super::stats::{Stats, TIMING_STRIDE, timer_overhead};
 use crate::asset::desc::AlphaMode;
 use crate::light::area::LightPoint;
@@ -492,10 +493,45 @@ impl<'a> Integrator<'a> {
         // Two copies of the path: scenes without glass run the one without its branches
         // (with them, those scenes' samples took 3–5% longer: docs/performance.md).
         if self.panes || self.volumes {
-            self.path::<T, true>(tracer, origin, dir, camera_hit, false, rng, stats, contexts)
+            let now = &mut TraceNow;
+            self.path::<T, true, _>(
+                tracer, origin, dir, camera_hit, false, rng, stats, contexts, now,
+            )
         } else {
-            self.path::<T, false>(tracer, origin, dir, camera_hit, false, rng, stats, contexts)
+            let now = &mut TraceNow;
+            self.path::<T, false, _>(
+                tracer, origin, dir, camera_hit, false, rng, stats, contexts, now,
+            )
         }
+    }
+
+    /// Whether paths may queue their shadow rays ([`Self::radiance_queued`]): in scenes
+    /// without glass or volumes, whose shadow rays answer only "blocked" or not.
+    pub fn queues_shadows(&self) -> bool {
+        !(self.panes || self.volumes)
+    }
+
+    /// [`Self::radiance_from`] of a path that queues its shadow rays in `shadows` (where
+    /// [`Self::queues_shadows`]): the radiance it gathers without them, which
+    /// [`ShadowQueue::resolve`] then completes.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    pub fn radiance_queued<T: Tracer>(
+        &self,
+        tracer: &T,
+        origin: Vec3,
+        dir: Vec3,
+        camera_hit: Option<Option<Hit>>,
+        rng: &mut Sampler,
+        stats: &mut Stats,
+        contexts: &mut PathContexts,
+        shadows: &mut ShadowQueue,
+    ) -> Vec3 {
+        debug_assert!(self.queues_shadows());
+        stats.camera_rays += 1;
+        self.path::<T, false, _>(
+            tracer, origin, dir, camera_hit, false, rng, stats, contexts, shadows,
+        )
     }
 
     /// The radiance a path gathers from `origin` along `dir`, whose first hit may be traced
@@ -504,7 +540,7 @@ impl<'a> Integrator<'a> {
     /// ([`Self::cross_panes`]).
     #[allow(clippy::too_many_arguments)]
     #[inline(always)]
-    fn path<T: Tracer, const GLASS: bool>(
+    fn path<T: Tracer, const GLASS: bool, Q: Shadows>(
         &self,
         tracer: &T,
         origin: Vec3,
@@ -514,6 +550,7 @@ impl<'a> Integrator<'a> {
         rng: &mut Sampler,
         stats: &mut Stats,
         contexts: &mut PathContexts,
+        shadows: &mut Q,
     ) -> Vec3 {
         let geometry = &*self.scene.geometry;
         let mut l = Vec3::ZERO;
@@ -536,7 +573,10 @@ impl<'a> Integrator<'a> {
                     ctx: picked.then_some(if depth % 2 == 0 { &*odd } else { &*even }),
                     bsdf_pdf,
                 });
-                l += beta * self.emission_along::<T, GLASS>(tracer, o, d, prev.as_ref(), stats);
+                let from = shadows.mark();
+                let le =
+                    self.emission_along::<T, GLASS, Q>(tracer, o, d, prev.as_ref(), stats, shadows);
+                shadows.close(&mut l, from, beta, le);
                 break;
             }
             if depth > 0 {
@@ -570,7 +610,8 @@ impl<'a> Integrator<'a> {
                 }
             }
             let Some(hit) = hit else {
-                l += beta * self.environment_along(d, previous.map(|(x, ng, _, pdf)| (x, ng, pdf)));
+                let le = self.environment_along(d, previous.map(|(x, ng, _, pdf)| (x, ng, pdf)));
+                shadows.add(&mut l, beta * le);
                 break;
             };
             let tri = &geometry.triangles[hit.triangle as usize];
@@ -596,7 +637,7 @@ impl<'a> Integrator<'a> {
                     le *= s.emission_scale(&point.uvs);
                 }
                 match previous {
-                    None => l += beta * le,
+                    None => shadows.add(&mut l, beta * le),
                     Some((x, prev_ng, picked, bsdf_pdf)) if le != Vec3::ZERO => {
                         let prev = Previous {
                             x,
@@ -606,7 +647,10 @@ impl<'a> Integrator<'a> {
                         };
                         let y = LightPoint { p, n: ng };
                         let light_pdf = self.light_pdf(&prev, light, d, y, hit.t);
-                        l += beta * le * power_heuristic(prev.bsdf_pdf, light_pdf);
+                        shadows.add(
+                            &mut l,
+                            beta * le * power_heuristic(prev.bsdf_pdf, light_pdf),
+                        );
                     }
                     Some(_) => {}
                 }
@@ -691,7 +735,8 @@ impl<'a> Integrator<'a> {
 
             // Next-event estimation through the chosen strategy, weighted against the
             // continuation's density.
-            let direct = self.sample_direct::<T, GLASS>(
+            let from = shadows.mark();
+            let direct = self.sample_direct::<T, GLASS, Q>(
                 tracer,
                 &shading,
                 rng,
@@ -701,9 +746,10 @@ impl<'a> Integrator<'a> {
                 } else {
                     &mut *odd
                 },
+                shadows,
             );
             let picked = direct.is_some_and(|d| d.context_filled);
-            l += beta * direct.map_or(Vec3::ZERO, |d| d.l);
+            shadows.close(&mut l, from, beta, direct.map_or(Vec3::ZERO, |d| d.l));
 
             // The next direction: from the BSDF, or through the openings (guided continuation),
             // and MIS for the light it may hit with the mixture's density.
@@ -756,13 +802,14 @@ impl<'a> Integrator<'a> {
     /// for scenes whose lights are all polygons: the nearest light polygon along the ray is
     /// found directly, and one occlusion ray checks that nothing lies before it.
     #[inline(always)]
-    fn emission_along<T: Tracer, const GLASS: bool>(
+    fn emission_along<T: Tracer, const GLASS: bool, Q: Shadows>(
         &self,
         tracer: &T,
         o: Vec3,
         d: Vec3,
         prev: Option<&Previous>,
         stats: &mut Stats,
+        shadows: &mut Q,
     ) -> Vec3 {
         let geometry = &*self.scene.geometry;
         let Some((light, t)) = self.nearest_light_polygon(o, d) else {
@@ -782,6 +829,21 @@ impl<'a> Integrator<'a> {
         // Stop short of the light so that its own triangles do not occlude it. A BSDF path:
         // it crosses panes whatever shadow rays do.
         let tmax = t * (1.0 - 1e-4) - Self::shadow_gap(self.scale);
+        // MIS against the light technique at the previous vertex, if any.
+        let weighted = |le: Vec3, prev: Option<&Previous>| match prev {
+            None => le,
+            Some(prev) => {
+                let y = LightPoint {
+                    p: o + t * d,
+                    n: polygon.normal(),
+                };
+                let light_pdf = self.light_pdf(prev, light, d, y, t);
+                le * power_heuristic(prev.bsdf_pdf, light_pdf)
+            }
+        };
+        if Q::QUEUES && !GLASS && shadows.queue(o, d, tmax, weighted(le, prev)) {
+            return Vec3::ZERO;
+        }
         let (transmittance, crossings) = if self.has_panes::<GLASS>() {
             self.through_panes(tracer, o, d, tmax)
         } else if tracer.occluded(o, d, 0.0, tmax) {
@@ -795,17 +857,7 @@ impl<'a> Integrator<'a> {
         let le = le * transmittance;
         // Light sampling through glass is off: past a pane, the full weight.
         let prev = prev.filter(|_| crossings == 0 || self.settings.glass == GlassShadows::Pass);
-        match prev {
-            None => le,
-            Some(prev) => {
-                let y = LightPoint {
-                    p: o + t * d,
-                    n: polygon.normal(),
-                };
-                let light_pdf = self.light_pdf(prev, light, d, y, t);
-                le * power_heuristic(prev.bsdf_pdf, light_pdf)
-            }
-        }
+        weighted(le, prev)
     }
 
     /// The environment's radiance along `d` for a ray that left the scene, MIS-weighted against
@@ -905,13 +957,14 @@ impl<'a> Integrator<'a> {
     /// the MIS-weighted contribution, or `None` when no light was picked. Leaves an area
     /// light's context in `ctx` for later MIS (a lamp's sample leaves it untouched).
     #[inline(always)]
-    fn sample_direct<T: Tracer, const GLASS: bool>(
+    fn sample_direct<T: Tracer, const GLASS: bool, Q: Shadows>(
         &self,
         tracer: &T,
         s: &Shading,
         rng: &mut Sampler,
         stats: &mut Stats,
         ctx: &mut LightContext,
+        shadows: &mut Q,
     ) -> Option<Direct> {
         let ([u_pick, u_technique], u) = rng.uniforms_uniform2();
         let (light, light_prob) = match self.lights.pick(u_pick, s.x, s.pick_normal())? {
@@ -921,13 +974,20 @@ impl<'a> Integrator<'a> {
                 stats.no_portal += 1;
                 stats.count_technique(Technique::Light);
                 return Some(Direct {
-                    l: self.lamp_direct::<T, GLASS>(tracer, lamp, p, s, stats),
+                    l: self.lamp_direct::<T, GLASS, Q>(tracer, lamp, p, s, stats, shadows),
                     context_filled: false,
                 });
             }
             (PickedLight::Environment, p) => {
                 return Some(Direct {
-                    l: self.sky_direct::<T, GLASS>(tracer, p, s, u_technique, u, stats),
+                    l: self.sky_direct::<T, GLASS, Q>(
+                        tracer,
+                        p,
+                        s,
+                        (u_technique, u),
+                        stats,
+                        shadows,
+                    ),
                     context_filled: false,
                 });
             }
@@ -936,7 +996,7 @@ impl<'a> Integrator<'a> {
         let start = timed.then(Instant::now);
         self.lights.fill_context(self.scene, light, s.x, ctx);
         if self.settings.mixture == Mixture::EachShare && ctx.both_shares_draw() {
-            let l = self.each_share_direct::<T, GLASS>(
+            let l = self.each_share_direct::<T, GLASS, Q>(
                 tracer,
                 (light, light_prob),
                 s,
@@ -944,6 +1004,7 @@ impl<'a> Integrator<'a> {
                 ctx,
                 start,
                 stats,
+                shadows,
             );
             return Some(Direct {
                 l,
@@ -963,7 +1024,15 @@ impl<'a> Integrator<'a> {
         let l = match &sample {
             Some(sample) => {
                 stats.count_technique(sample.technique);
-                self.direct::<T, GLASS>(tracer, sample, light, light_prob, s, stats)
+                self.direct::<T, GLASS, Q>(
+                    tracer,
+                    sample,
+                    (light, light_prob),
+                    1.0,
+                    s,
+                    stats,
+                    shadows,
+                )
             }
             None => {
                 stats.empty_samples += 1;
@@ -982,7 +1051,7 @@ impl<'a> Integrator<'a> {
     /// `start` is the light-sampling timer, stopped here after both draws.
     #[allow(clippy::too_many_arguments)]
     #[inline(always)]
-    fn each_share_direct<T: Tracer, const GLASS: bool>(
+    fn each_share_direct<T: Tracer, const GLASS: bool, Q: Shadows>(
         &self,
         tracer: &T,
         (light, light_prob): (usize, f32),
@@ -991,6 +1060,7 @@ impl<'a> Integrator<'a> {
         ctx: &LightContext,
         start: Option<Instant>,
         stats: &mut Stats,
+        shadows: &mut Q,
     ) -> Vec3 {
         let light_share = ctx.light_share().0;
         let from_light = self
@@ -1009,8 +1079,9 @@ impl<'a> Integrator<'a> {
             match sample {
                 Some(sample) => {
                     stats.count_technique(sample.technique);
-                    l += share
-                        * self.direct::<T, GLASS>(tracer, &sample, light, light_prob, s, stats);
+                    let picked = (light, light_prob);
+                    l += self
+                        .direct::<T, GLASS, Q>(tracer, &sample, picked, share, s, stats, shadows);
                 }
                 None => stats.empty_samples += 1,
             }
@@ -1022,13 +1093,14 @@ impl<'a> Integrator<'a> {
     /// incidence. A lamp is a delta light: BSDF sampling never finds it, so its sample's MIS
     /// weight is 1.
     #[inline(always)]
-    fn lamp_direct<T: Tracer, const GLASS: bool>(
+    fn lamp_direct<T: Tracer, const GLASS: bool, Q: Shadows>(
         &self,
         tracer: &T,
         lamp: usize,
         lamp_prob: f32,
         s: &Shading,
         stats: &mut Stats,
+        shadows: &mut Q,
     ) -> Vec3 {
         let Some(sample) = self.scene.geometry.lamps[lamp].sample(s.x) else {
             return Vec3::ZERO;
@@ -1051,6 +1123,12 @@ impl<'a> Integrator<'a> {
         } else {
             f32::INFINITY
         };
+        if Q::QUEUES && !GLASS {
+            let c = f * sample.irradiance * wi_local.z.abs() / lamp_prob;
+            if shadows.queue(origin, sample.wi, tmax, c) {
+                return Vec3::ZERO;
+            }
+        }
         let mut transmittance = self.visibility::<T, GLASS>(tracer, origin, sample.wi, tmax);
         if transmittance == Vec3::ZERO {
             return Vec3::ZERO;
@@ -1066,14 +1144,14 @@ impl<'a> Integrator<'a> {
     /// Always inlined, like the area lights' steps: out of line, it and its shadow ray were
     /// compiled for baseline x86-64, not for the renderer's instruction set.
     #[inline(always)]
-    fn sky_direct<T: Tracer, const GLASS: bool>(
+    fn sky_direct<T: Tracer, const GLASS: bool, Q: Shadows>(
         &self,
         tracer: &T,
         env_prob: f32,
         s: &Shading,
-        u_technique: f32,
-        u: glam::Vec2,
+        (u_technique, u): (f32, glam::Vec2),
         stats: &mut Stats,
+        shadows: &mut Q,
     ) -> Vec3 {
         let timed = stats.shading_points().is_multiple_of(TIMING_STRIDE);
         let start = timed.then(Instant::now);
@@ -1108,30 +1186,32 @@ impl<'a> Integrator<'a> {
             };
             stats.count_technique(sample.technique.technique());
             let light_pdf = env_prob * sample.pdf;
-            l += share
-                * self.weighted::<T, GLASS>(
-                    tracer,
-                    s,
-                    sample.wi,
-                    sample.le,
-                    light_pdf,
-                    f32::INFINITY,
-                    stats,
-                );
+            l += self.weighted::<T, GLASS, Q>(
+                tracer,
+                s,
+                (sample.wi, sample.le, light_pdf),
+                f32::INFINITY,
+                share,
+                stats,
+                shadows,
+            );
         }
         l
     }
 
-    /// A light sample's contribution, weighted against BSDF sampling by the power heuristic.
+    /// A light sample's contribution, weighted against BSDF sampling by the power heuristic,
+    /// times `share` (as [`Self::weighted`]).
+    #[allow(clippy::too_many_arguments)]
     #[inline(always)]
-    fn direct<T: Tracer, const GLASS: bool>(
+    fn direct<T: Tracer, const GLASS: bool, Q: Shadows>(
         &self,
         tracer: &T,
         sample: &LightSample,
-        light: usize,
-        light_prob: f32,
+        (light, light_prob): (usize, f32),
+        share: f32,
         s: &Shading,
         stats: &mut Stats,
+        shadows: &mut Q,
     ) -> Vec3 {
         let Some((y, dist)) = sample.hit else {
             return Vec3::ZERO;
@@ -1144,24 +1224,27 @@ impl<'a> Integrator<'a> {
         // Stop short of the light so that its own triangles do not occlude it.
         let tmax = dist * (1.0 - 1e-4) - Self::shadow_gap(self.scale);
         let light_pdf = light_prob * sample.pdf;
-        self.weighted::<T, GLASS>(tracer, s, sample.wi, le, light_pdf, tmax, stats)
+        let radiance = (sample.wi, le, light_pdf);
+        self.weighted::<T, GLASS, Q>(tracer, s, radiance, tmax, share, stats, shadows)
     }
 
     /// Radiance `le` arriving along `wi`, drawn with density `light_pdf` (selection times
-    /// mixture), weighted against BSDF sampling by the power heuristic; zero if something
-    /// stands before `tmax`, or the direction is below the surface or has no density; times
-    /// the transmittance of the thin glass crossed ([`Self::visibility`]).
+    /// mixture), weighted against BSDF sampling by the power heuristic, times `share` (of the
+    /// light mixture, where each share draws); zero if something stands before `tmax`, or the
+    /// direction is below the surface or has no density; times the transmittance of the thin
+    /// glass crossed ([`Self::visibility`]). A queue (`shadows`) may take the shadow ray and
+    /// the contribution instead: then zero.
     #[allow(clippy::too_many_arguments)]
     #[inline(always)]
-    fn weighted<T: Tracer, const GLASS: bool>(
+    fn weighted<T: Tracer, const GLASS: bool, Q: Shadows>(
         &self,
         tracer: &T,
         s: &Shading,
-        wi: Vec3,
-        le: Vec3,
-        light_pdf: f32,
+        (wi, le, light_pdf): (Vec3, Vec3, f32),
         tmax: f32,
+        share: f32,
         stats: &mut Stats,
+        shadows: &mut Q,
     ) -> Vec3 {
         if le == Vec3::ZERO || light_pdf.is_nan() || light_pdf <= 0.0 || !s.may_scatter(wi) {
             return Vec3::ZERO;
@@ -1177,6 +1260,12 @@ impl<'a> Integrator<'a> {
         }
         let bsdf_pdf = s.continuation.pdf(bsdf_pdf, wi);
         stats.shadow_rays += 1;
+        if Q::QUEUES && !GLASS {
+            let c = f * le * wi_local.z.abs() * power_heuristic(light_pdf, bsdf_pdf) / light_pdf;
+            if shadows.queue(origin, wi, tmax, share * c) {
+                return Vec3::ZERO;
+            }
+        }
         let mut transmittance = self.visibility::<T, GLASS>(tracer, origin, wi, tmax);
         if transmittance == Vec3::ZERO {
             return Vec3::ZERO;
@@ -1184,7 +1273,9 @@ impl<'a> Integrator<'a> {
         if self.has_volumes::<GLASS>() {
             transmittance *= s.absorption(wi_local, tmax);
         }
-        f * transmittance * le * wi_local.z.abs() * power_heuristic(light_pdf, bsdf_pdf) / light_pdf
+        share
+            * (f * transmittance * le * wi_local.z.abs() * power_heuristic(light_pdf, bsdf_pdf)
+                / light_pdf)
     }
 
     /// A BSDF path's ray `o + t·d` whose closest hit is `hit`, in a scene with thin glass: it
@@ -1268,7 +1359,7 @@ impl<'a> Integrator<'a> {
     ) -> Vec3 {
         // Its own contexts: the camera path has filled none yet, but holds them borrowed.
         let mut contexts = PathContexts::new();
-        self.path::<T, true>(
+        self.path::<T, true, _>(
             tracer,
             o,
             d,
@@ -1277,6 +1368,7 @@ impl<'a> Integrator<'a> {
             rng,
             stats,
             &mut contexts,
+            &mut TraceNow,
         )
     }
 

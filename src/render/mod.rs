@@ -5,6 +5,7 @@ pub mod film;
 pub mod integrator;
 pub mod primary;
 pub mod record;
+pub mod shadows;
 pub mod shell;
 pub mod stats;
 pub mod tonemap;
@@ -19,7 +20,55 @@ pub use crate::isa::Isa;
 use crate::scene::bvh::{PACKET, ShadowCache, Tracer};
 use film::Film;
 use integrator::{Integrator, PathContexts};
+use shadows::ShadowQueue;
 use stats::Stats;
+
+/// How the tile renderer runs a packet's paths. Both give the same pixels, bit for bit
+/// (`tests/core.rs`); `PORTALVIEW_INTEGRATOR=path` in the environment chooses the reference
+/// for every command and the viewer, to compare the two.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Schedule {
+    /// In stages over the packet (8 paths on AVX2): the camera rays together, then each
+    /// path's shading and sampling, which queue their shadow rays with the contribution each
+    /// carries, then the queued shadow rays, 8 at a time. Scenes with glass or volumes, whose
+    /// shadow rays gather transmittance, and CPUs without AVX2 run [`Schedule::Paths`].
+    Staged,
+    /// Each path from the camera to its end, every ray traced where it is made: the reference.
+    Paths,
+}
+
+impl Schedule {
+    pub const ALL: [Schedule; 2] = [Schedule::Staged, Schedule::Paths];
+
+    /// The schedule `PORTALVIEW_INTEGRATOR` names (`staged`, the default, or `path`), read
+    /// once; another value is reported on stderr and ignored.
+    pub fn detect() -> Schedule {
+        static DETECTED: std::sync::OnceLock<Schedule> = std::sync::OnceLock::new();
+        *DETECTED.get_or_init(|| {
+            let Some(value) = std::env::var_os("PORTALVIEW_INTEGRATOR") else {
+                return Schedule::Staged;
+            };
+            match Schedule::ALL.into_iter().find(|s| value == s.name()) {
+                Some(schedule) => schedule,
+                None => {
+                    eprintln!(
+                        "warning: PORTALVIEW_INTEGRATOR={}: not `staged` or `path`, ignored",
+                        value.to_string_lossy()
+                    );
+                    Schedule::Staged
+                }
+            }
+        })
+    }
+
+    /// As `PORTALVIEW_INTEGRATOR` names it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Schedule::Staged => "staged",
+            Schedule::Paths => "path",
+        }
+    }
+}
 
 /// Side of the square tiles that threads take.
 pub const TILE: u32 = 16;
@@ -94,6 +143,27 @@ pub fn render_tile_isa<T: Tracer>(
     pass: u32,
     stats: &mut Stats,
 ) -> Vec<Vec3> {
+    let schedule = Schedule::detect();
+    render_tile_scheduled(
+        isa, schedule, integrator, tracer, rays, tiles, tile, pass, stats,
+    )
+}
+
+/// [`render_tile_isa`] with the paths run as `schedule` says (where the scene and the CPU
+/// allow it).
+#[allow(clippy::too_many_arguments)]
+pub fn render_tile_scheduled<T: Tracer>(
+    isa: Isa,
+    schedule: Schedule,
+    integrator: &Integrator,
+    tracer: &T,
+    rays: &RayGenerator,
+    tiles: Tiles,
+    tile: u32,
+    pass: u32,
+    stats: &mut Stats,
+) -> Vec<Vec3> {
+    let staged = schedule == Schedule::Staged && integrator.queues_shadows();
     if isa.available() {
         // SAFETY: each variant is called only where the CPU has its features, checked above.
         #[cfg(target_arch = "x86_64")]
@@ -101,12 +171,13 @@ pub fn render_tile_isa<T: Tracer>(
         match isa {
             Isa::Baseline => {}
             Isa::Avx2 => {
-                return unsafe { tile_avx2(integrator, tracer, rays, tiles, tile, pass, stats) };
+                let tile = (tiles, tile, pass);
+                return unsafe { tile_avx2(integrator, tracer, rays, tile, staged, stats) };
             }
         }
     }
     // One camera ray at a time: packets are traced with AVX2 only.
-    tile_samples::<T, 1>(integrator, tracer, rays, tiles, tile, pass, stats)
+    tile_samples::<T, 1>(integrator, tracer, rays, (tiles, tile, pass), false, stats)
 }
 
 /// [`tile_samples`] for [`Isa::Avx2`]: everything it inlines is compiled with these features.
@@ -116,24 +187,23 @@ fn tile_avx2<T: Tracer>(
     integrator: &Integrator,
     tracer: &T,
     rays: &RayGenerator,
-    tiles: Tiles,
-    tile: u32,
-    pass: u32,
+    tile: (Tiles, u32, u32),
+    staged: bool,
     stats: &mut Stats,
 ) -> Vec<Vec3> {
-    tile_samples::<T, PACKET>(integrator, tracer, rays, tiles, tile, pass, stats)
+    tile_samples::<T, PACKET>(integrator, tracer, rays, tile, staged, stats)
 }
 
 /// The body of [`render_tile`], inlined into each instruction-set variant, which traces the
-/// camera rays of `P` pixels at a time (at most [`PACKET`]).
+/// camera rays of `P` pixels at a time (at most [`PACKET`]) and, if `staged`, their paths'
+/// shadow rays too ([`Schedule::Staged`]).
 #[inline(always)]
 fn tile_samples<T: Tracer, const P: usize>(
     integrator: &Integrator,
     tracer: &T,
     rays: &RayGenerator,
-    tiles: Tiles,
-    tile: u32,
-    pass: u32,
+    (tiles, tile, pass): (Tiles, u32, u32),
+    staged: bool,
     stats: &mut Stats,
 ) -> Vec<Vec3> {
     let settings = integrator.settings();
@@ -147,6 +217,8 @@ fn tile_samples<T: Tracer, const P: usize>(
     // Camera rays are traced in packets of a row's consecutive pixels, which take nearly the
     // same path through the BVH; each path then continues from its hit, pixel by pixel.
     let traced = integrator.camera_hits_traced();
+    let staged = staged && P > 1;
+    let mut queue = ShadowQueue::new();
     for y in y0..y0 + h {
         for x in (x0..x0 + w).step_by(P) {
             let n = (x0 + w - x).min(P as u32) as usize;
@@ -162,6 +234,31 @@ fn tile_samples<T: Tracer, const P: usize>(
             let mut hits = [None; P];
             if traced {
                 tracer.closest_hits(&origins[..n], &dirs[..n], 0.0, f32::INFINITY, &mut hits);
+            }
+            if staged {
+                // Each path gathers what needs no shadow ray and queues its shadow rays; the
+                // packet's shadow rays are then traced together.
+                let mut radiance = [Vec3::ZERO; P];
+                for (i, rng) in rngs.iter_mut().enumerate().take(n) {
+                    let hit = traced.then_some(hits[i]);
+                    let (o, d) = (origins[i], dirs[i]);
+                    queue.set_lane(i);
+                    radiance[i] = integrator.radiance_queued(
+                        tracer,
+                        o,
+                        d,
+                        hit,
+                        rng,
+                        stats,
+                        &mut contexts,
+                        &mut queue,
+                    );
+                }
+                queue.resolve(tracer, &mut radiance);
+                for &l in &radiance[..n] {
+                    pixels.push(stats.finite_or_counted(l));
+                }
+                continue;
             }
             for (i, rng) in rngs.iter_mut().enumerate().take(n) {
                 let hit = traced.then_some(hits[i]);

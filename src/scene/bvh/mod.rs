@@ -146,6 +146,29 @@ pub trait Tracer {
             *hit = self.closest_hit(o, d, tmin, tmax);
         }
     }
+
+    /// Whether anything lies on each open segment `origins[i] + t·dirs[i]`, `t` in
+    /// `[tmin, tmaxes[i])`, into `blocked[i]` (at most [`PACKET`] rays), `guess` tested first
+    /// as in [`Self::occluder`], and a primitive found to block one of them: the same answers
+    /// as [`Self::occluded`], though a tracer may trace them together.
+    #[inline(always)]
+    fn occluders_each(
+        &self,
+        origins: &[Vec3],
+        dirs: &[Vec3],
+        tmin: f32,
+        tmaxes: &[f32],
+        guess: u32,
+        blocked: &mut [bool],
+    ) -> Option<u32> {
+        let mut blocker = None;
+        for (((&o, &d), &tmax), b) in origins.iter().zip(dirs).zip(tmaxes).zip(blocked) {
+            let found = self.occluder(o, d, tmin, tmax, guess);
+            *b = found.is_some();
+            blocker = found.or(blocker);
+        }
+        blocker
+    }
 }
 
 /// No guess for [`Tracer::occluder`].
@@ -199,6 +222,25 @@ impl<T: Tracer> Tracer for ShadowCache<'_, T> {
         self.tracer.closest_hits(origins, dirs, tmin, tmax, hits);
     }
 
+    /// The guess is the last blocker, as for [`Self::occluder`], tested on the whole packet
+    /// first: a tile's shadow rays toward a shaded light mostly stop at the same triangle.
+    #[inline(always)]
+    fn occluders_each(
+        &self,
+        origins: &[Vec3],
+        dirs: &[Vec3],
+        tmin: f32,
+        tmaxes: &[f32],
+        _: u32,
+        blocked: &mut [bool],
+    ) -> Option<u32> {
+        let guess = self.last.get();
+        self.remember(
+            self.tracer
+                .occluders_each(origins, dirs, tmin, tmaxes, guess, blocked),
+        )
+    }
+
     /// The guess is the last blocker, as for [`Self::occluder`]: offered first, and never
     /// offered twice (a guess let through is skipped by the traversal).
     #[inline(always)]
@@ -242,6 +284,19 @@ impl Tracer for Bvh {
         hits: &mut [Option<Hit>],
     ) {
         Bvh::closest_hits(self, origins, dirs, tmin, tmax, hits);
+    }
+
+    #[inline(always)]
+    fn occluders_each(
+        &self,
+        origins: &[Vec3],
+        dirs: &[Vec3],
+        tmin: f32,
+        tmaxes: &[f32],
+        guess: u32,
+        blocked: &mut [bool],
+    ) -> Option<u32> {
+        Bvh::occluders_each(self, origins, dirs, tmin, tmaxes, guess, blocked)
     }
 
     #[inline(always)]
@@ -680,6 +735,21 @@ impl Bvh {
         tmaxes: &[f32],
         blocked: &mut [bool],
     ) {
+        self.occluders_each(origins, dirs, tmin, tmaxes, NO_OCCLUDER, blocked);
+    }
+
+    /// [`Self::occluded_each`] with triangle `guess` (BVH order, or [`NO_OCCLUDER`]) tested
+    /// on every ray first, and a triangle found to block one of them, if any.
+    #[inline(always)]
+    pub fn occluders_each(
+        &self,
+        origins: &[Vec3],
+        dirs: &[Vec3],
+        tmin: f32,
+        tmaxes: &[f32],
+        guess: u32,
+        blocked: &mut [bool],
+    ) -> Option<u32> {
         let n = origins
             .len()
             .min(dirs.len())
@@ -694,15 +764,19 @@ impl Bvh {
             });
             // SAFETY: as in `closest_hits`.
             #[allow(unsafe_code)]
-            let found = unsafe { wide.any_packet(&self.triangles, &rays, n) };
+            let (found, blocker) = unsafe { wide.any_packet(&self.triangles, &rays, n, guess) };
             for (i, b) in blocked.iter_mut().enumerate().take(n) {
                 *b = found & (1 << i) != 0;
             }
-            return;
+            return blocker;
         }
+        let mut blocker = None;
         for i in 0..n {
-            blocked[i] = self.occluded(origins[i], dirs[i], tmin, tmaxes[i]);
+            let found = self.occluder(origins[i], dirs[i], tmin, tmaxes[i], guess);
+            blocked[i] = found.is_some();
+            blocker = found.or(blocker);
         }
+        blocker
     }
 
     /// Whether anything lies on the segment `origin + t·dir`, `t` in `[tmin, tmax)`.

@@ -59,6 +59,7 @@ fn packets_answer_as_single_rays() {
     let rays = scene.camera.rays(1.0);
     let mut rng = Rng::new(5, 0);
     let (mut together, mut hits, mut rays_traced, mut occluded) = (0, 0, 0, 0);
+    let (mut guess, mut guesses_hit) = (NO_OCCLUDER, 0);
     for packet in 0..3000 {
         let n = if packet % 7 == 0 {
             1 + packet % PACKET
@@ -122,6 +123,22 @@ fn packets_answer_as_single_rays() {
             assert_eq!(blocked[i], expected, "packet {packet}, shadow ray {i}");
             occluded += u32::from(expected);
         }
+        // With the last packet's blocker tested first (the renderer's shadow cache): the same
+        // answers, and the blocker it names blocks one of these rays.
+        let mut guessed = [false; PACKET];
+        let segments = (&origins[..n], &dirs[..n], &tmaxes[..n]);
+        let blocker =
+            bvh.occluders_each(segments.0, segments.1, 0.0, segments.2, guess, &mut guessed);
+        assert_eq!(guessed, blocked, "packet {packet}, guess {guess}");
+        if let Some(b) = blocker {
+            let blocks = |i: usize| bvh.occluder(origins[i], dirs[i], 0.0, tmaxes[i], b) == Some(b);
+            assert!(
+                (0..n).any(blocks),
+                "packet {packet}: blocker {b} blocks none"
+            );
+            guesses_hit += u32::from(b == guess);
+            guess = b;
+        }
     }
     assert!(
         together > 2000
@@ -129,6 +146,11 @@ fn packets_answer_as_single_rays() {
             && occluded > rays_traced / 4
             && occluded < rays_traced * 3 / 4,
         "{together}, {hits} and {occluded} of {rays_traced}"
+    );
+    // The guess was the blocker again often enough for its path to be tested.
+    assert!(
+        guesses_hit > 50,
+        "the guess blocked again in {guesses_hit} packets"
     );
 }
 

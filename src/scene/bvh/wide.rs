@@ -330,15 +330,40 @@ impl WideBvh {
     }
 
     /// Whether each of `rays[..n]` meets one of `triangles` below its `tmax` ([`Self::any`]),
-    /// traced together; a ray leaves the packet at its first hit.
+    /// traced together (bit `i` of the first number), and the last triangle found to block a
+    /// ray. Triangle `guess` (if it is one) is tested on every ray first; a ray leaves the
+    /// packet at its first hit.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,bmi1,bmi2")]
-    pub fn any_packet(&self, triangles: &[RtTri], rays: &[Ray; PACKET], n: usize) -> u32 {
+    pub fn any_packet(
+        &self,
+        triangles: &[RtTri],
+        rays: &[Ray; PACKET],
+        n: usize,
+        guess: u32,
+    ) -> (u32, Option<u32>) {
         use std::arch::x86_64::*;
         let lanes = Lanes::new(rays);
-        let slabs = rays.each_ref().map(Slabs::<true>::new);
         let all = (1u32 << n) - 1;
         let mut blocked = 0u32;
+        let mut blocker = None;
+        let mut block = |id: u32, open: u32, blocked: &mut u32| {
+            let (hit, t_hit) =
+                lanes.triangle_hits(&triangles[id as usize], lanes.tmax, lanes.mask(open));
+            let below = _mm256_and_ps(hit, _mm256_cmp_ps::<_CMP_LT_OQ>(t_hit, lanes.tmax));
+            let found = _mm256_movemask_ps(below) as u32 & open;
+            if found != 0 {
+                *blocked |= found;
+                blocker = Some(id);
+            }
+        };
+        if (guess as usize) < triangles.len() {
+            block(guess, all, &mut blocked);
+            if blocked == all {
+                return (all, blocker);
+            }
+        }
+        let slabs = rays.each_ref().map(Slabs::<true>::new);
         let mut stack = Stack::<(u32, u32, f32)>::new();
         stack.push((0, all, 0.0));
         while let Some((word, active, _)) = stack.pop() {
@@ -377,18 +402,15 @@ impl WideBvh {
                     if open == 0 {
                         break;
                     }
-                    let (hit, t_hit) =
-                        lanes.triangle_hits(&triangles[id as usize], lanes.tmax, lanes.mask(open));
-                    let below = _mm256_and_ps(hit, _mm256_cmp_ps::<_CMP_LT_OQ>(t_hit, lanes.tmax));
-                    blocked |= _mm256_movemask_ps(below) as u32;
+                    block(id, open, &mut blocked);
                 }
                 if blocked & all == all {
-                    return all;
+                    return (all, blocker);
                 }
             }
             stack.sort_nearest_on_top_by(pushed, |e| e.2);
         }
-        blocked & all
+        (blocked & all, blocker)
     }
 }
 
