@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
 """portalview against Mitsuba 3 (`llvm_ad_rgb`) on the built-in scenes, in one run.
 
-For each `assets/*.glb` this script
+For each `assets/*.glb` named in `--scenes` (`NAME+rug`: with a rug of a million triangles on
+its floor, `add_rug`, so that rays cost more) this script
   1. converts the scene: every mesh to a PLY in world space, every material to a Lambertian
      `diffuse` in `twosided` (of the base colour, also for metals), every emissive material
      to a one-sided `area` emitter with the same radiance (a double-sided one to two, back to
@@ -80,6 +81,9 @@ def accessor(gltf, binary, index):
     n, width = a["count"], WIDTH[a["type"]]
     start = view.get("byteOffset", 0) + a.get("byteOffset", 0)
     stride = view.get("byteStride", 0) or dtype.itemsize * width
+    if stride == dtype.itemsize * width:
+        out = np.frombuffer(binary, dtype, n * width, start)
+        return out.reshape(n, width) if width > 1 else out
     out = np.vstack(
         [np.frombuffer(binary, dtype, width, start + i * stride) for i in range(n)]
     )
@@ -158,10 +162,66 @@ def material_params(gltf, index):
     return base, emission, m.get("doubleSided", False)
 
 
-def convert(glb, out_dir, mi):
+RUG_TRIANGLES = 1_000_000
+
+
+def add_rug(gltf, binary):
+    """`gltf` with a rug of `RUG_TRIANGLES` triangles (a 500 × 1000 grid of quads, grey,
+    facing up) on its lowest surface, over the middle 80% of the scene's extent, its height
+    a field of bumps up to 1/500 of that extent (seeded): geometry where rays cost more, as
+    in a scanned or sculpted scene. Returns the new JSON and binary chunk."""
+    lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
+    for node, world in world_nodes(gltf):
+        if "mesh" not in node or "portal_target" in node.get("extras", {}):
+            continue
+        for prim in gltf["meshes"][node["mesh"]]["primitives"]:
+            pos = accessor(gltf, binary, prim["attributes"]["POSITION"]).astype(float)
+            pos = (np.c_[pos, np.ones(len(pos))] @ world.T)[:, :3]
+            lo, hi = np.minimum(lo, pos.min(axis=0)), np.maximum(hi, pos.max(axis=0))
+    nx, nz = 500, RUG_TRIANGLES // 1000
+    (x0, z0), (x1, z1) = lo[[0, 2]] * 0.8 + hi[[0, 2]] * 0.2, lo[[0, 2]] * 0.2 + hi[[0, 2]] * 0.8
+    amplitude = (hi - lo)[[0, 2]].max() / 500.0
+    xs, zs = np.meshgrid(np.linspace(x0, x1, nx + 1), np.linspace(z0, z1, nz + 1), indexing="ij")
+    rng = np.random.default_rng(0)
+    k = 2 * np.pi / (40 * amplitude)
+    bumps = 0.5 + 0.25 * (np.sin(k * xs) * np.sin(0.7 * k * zs) + np.sin(0.3 * k * (xs + zs)))
+    y = lo[1] + amplitude * (0.05 + 0.9 * np.clip(bumps + 0.05 * rng.standard_normal(xs.shape), 0, 1))
+    positions = np.stack([xs, y, zs], axis=-1).reshape(-1, 3).astype("<f4")
+    i = np.arange(nx)[:, None] * (nz + 1) + np.arange(nz)[None, :]
+    a, b, c, d = i, i + 1, i + nz + 2, i + nz + 1
+    # Counter-clockwise seen from above (+y): x right, z toward the viewer.
+    faces = np.stack([np.stack([a, b, c], -1), np.stack([a, c, d], -1)], -2).reshape(-1, 3)
+    indices = faces.astype("<u4")
+    binary = binary + b"\0" * (-len(binary) % 4)
+    views = gltf.setdefault("bufferViews", [])
+    accessors = gltf.setdefault("accessors", [])
+    for data, target in ((positions, 34962), (indices, 34963)):
+        views.append({"buffer": 0, "byteOffset": len(binary), "byteLength": data.nbytes,
+                      "target": target})
+        binary += data.tobytes()
+    accessors.append({"bufferView": len(views) - 2, "componentType": 5126, "count": len(positions),
+                      "type": "VEC3", "min": positions.min(0).tolist(),
+                      "max": positions.max(0).tolist()})
+    accessors.append({"bufferView": len(views) - 1, "componentType": 5125,
+                      "count": indices.size, "type": "SCALAR"})
+    gltf["buffers"][0]["byteLength"] = len(binary)
+    materials = gltf.setdefault("materials", [])
+    materials.append({"name": "rug", "pbrMetallicRoughness": {
+        "baseColorFactor": [0.45, 0.4, 0.35, 1.0], "metallicFactor": 0.0, "roughnessFactor": 1.0}})
+    gltf.setdefault("meshes", []).append({"name": "rug", "primitives": [{
+        "attributes": {"POSITION": len(accessors) - 2}, "indices": len(accessors) - 1,
+        "material": len(materials) - 1}]})
+    gltf["nodes"].append({"name": "rug", "mesh": len(gltf["meshes"]) - 1})
+    gltf["scenes"][gltf.get("scene", 0)]["nodes"].append(len(gltf["nodes"]) - 1)
+    return gltf, binary
+
+
+def convert(glb, out_dir, mi, rug=False):
     """The Mitsuba scene dict of `glb` (PLYs written to `out_dir`), and the path of the
-    Lambertian .glb for portalview."""
+    Lambertian .glb for portalview; with `rug`, both with [`add_rug`]'s rug."""
     gltf, binary = read_glb(glb)
+    if rug:
+        gltf, binary = add_rug(gltf, binary)
     if "KHR_lights_punctual" in gltf.get("extensionsUsed", []):
         raise SystemExit(f"{glb}: lamps (KHR_lights_punctual) are not converted")
     scene = {
@@ -370,7 +430,10 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--portalview", default=str(ROOT / "target/release/portalview"))
     ap.add_argument("--spp", type=int, default=1024, help="Mitsuba's samples per pixel")
-    ap.add_argument("--scenes", default="lampshade,fig8a,fig8b,fig8c")
+    ap.add_argument(
+        "--scenes", default="lampshade,fig8a,fig8b,fig8c",
+        help="built-in names; NAME+rug adds a rug of a million triangles (add_rug)",
+    )
     ap.add_argument("--strategies", default="light,antishadow")
     ap.add_argument("--sampler", default="sobol", help="portalview's sampler")
     ap.add_argument("--max-spp", type=int, default=16384)
@@ -392,7 +455,9 @@ def main():
         for name in args.scenes.split(","):
             scene_dir = tmp / name
             scene_dir.mkdir()
-            desc, lambert = convert(ROOT / "assets" / f"{name}.glb", scene_dir, mi)
+            # `NAME+rug`: the built-in with a rug of a million triangles (`add_rug`).
+            base, rug = name.removesuffix("+rug"), name.endswith("+rug")
+            desc, lambert = convert(ROOT / "assets" / f"{base}.glb", scene_dir, mi, rug)
             scene = mi.load_dict(desc)
             mitsuba_render(mi, dr, scene, args.spp, 0)  # warm-up: JIT compilation
             a, ta = mitsuba_render(mi, dr, scene, args.spp, 1)

@@ -46,7 +46,10 @@ def write_rays(path, o, d, tmin, tmax):
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--portalview", default=str(mb.ROOT / "target/release/portalview"))
-    ap.add_argument("--scenes", default="lampshade,fig8a,fig8b,fig8c")
+    ap.add_argument(
+        "--scenes", default="lampshade,fig8a,fig8b,fig8c",
+        help="built-in names; NAME+rug adds a rug of a million triangles (mitsuba_bench.add_rug)",
+    )
     ap.add_argument("--seconds", type=float, default=2.0, help="portalview's time per measurement")
     ap.add_argument("--keep", type=Path, help="write the scenes and ray files here (kept), for "
                     "`portalview bench --only rays` runs without Mitsuba")
@@ -70,7 +73,8 @@ def main():
         for name in args.scenes.split(","):
             scene_dir = tmp / name
             scene_dir.mkdir(parents=True, exist_ok=True)
-            desc, lambert = mb.convert(mb.ROOT / "assets" / f"{name}.glb", scene_dir, mi)
+            base, rug = name.removesuffix("+rug"), name.endswith("+rug")
+            desc, lambert = mb.convert(mb.ROOT / "assets" / f"{base}.glb", scene_dir, mi, rug)
             scene = mi.load_dict(desc)
             sensor = scene.sensors()[0]
             rng = mi.PCG32(size=n)
