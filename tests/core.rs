@@ -284,6 +284,22 @@ fn statistics_count_every_traced_ray() {
     }
 }
 
+/// Every built-in scene, as it is and with test textures on every material, named.
+fn builtins_plain_and_textured() -> impl Iterator<Item = (String, Scene)> {
+    portalview::asset::builtin::NAMES.iter().flat_map(|&name| {
+        let desc = portalview::asset::builtin::desc(name).unwrap();
+        let textured = portalview::asset::builtin::with_test_textures(desc.clone());
+        [
+            (name.to_string(), desc),
+            (format!("{name}, textured"), textured),
+        ]
+        .map(|(name, desc)| {
+            let scene = Scene::from_desc(desc, &name).unwrap();
+            (name, scene)
+        })
+    })
+}
+
 /// The renderer is compiled for baseline x86-64 and for x86-64-v3 (AVX2, FMA), the variant
 /// chosen at run time: every variant this CPU runs must give the baseline's
 /// pixels, bit for bit, on every built-in scene (textured too), with every strategy, for direct
@@ -293,16 +309,7 @@ fn statistics_count_every_traced_ray() {
 fn instruction_set_variants_render_identical_pixels() {
     let variants: Vec<Isa> = Isa::ALL.into_iter().filter(|isa| isa.available()).collect();
     eprintln!("instruction-set variants compared: {variants:?}");
-    let descs = portalview::asset::builtin::NAMES.iter().flat_map(|&name| {
-        let desc = portalview::asset::builtin::desc(name).unwrap();
-        let textured = portalview::asset::builtin::with_test_textures(desc.clone());
-        [
-            (name.to_string(), desc),
-            (format!("{name}, textured"), textured),
-        ]
-    });
-    for (name, desc) in descs {
-        let scene = Scene::from_desc(desc, &name).unwrap();
+    for (name, scene) in builtins_plain_and_textured() {
         for strategy in Strategy::ALL {
             for max_depth in [1, 3] {
                 let integrator = Integrator::new(
@@ -414,16 +421,7 @@ fn staged_schedule_renders_the_reference_pixels() {
     if isa == Isa::Baseline {
         eprintln!("no AVX2: both schedules run one path at a time here");
     }
-    let descs = portalview::asset::builtin::NAMES.iter().flat_map(|&name| {
-        let desc = portalview::asset::builtin::desc(name).unwrap();
-        let textured = portalview::asset::builtin::with_test_textures(desc.clone());
-        [
-            (name.to_string(), desc),
-            (format!("{name}, textured"), textured),
-        ]
-    });
-    for (name, desc) in descs {
-        let scene = Scene::from_desc(desc, &name).unwrap();
+    for (name, scene) in builtins_plain_and_textured() {
         let settings = Strategy::ALL.into_iter().flat_map(|strategy| {
             [(1, SamplerKind::Sobol), (3, SamplerKind::Independent)]
                 .into_iter()
