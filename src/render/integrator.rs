@@ -511,9 +511,10 @@ impl<'a> Integrator<'a> {
         !(self.panes || self.volumes)
     }
 
-    /// [`Self::radiance_from`] of a path that queues its shadow rays in `shadows` (where
-    /// [`Self::queues_shadows`]): the radiance it gathers without them, which
-    /// [`ShadowQueue::resolve`] then completes.
+    /// [`Self::radiance_from`] of a path that queues what it gathers in `shadows` (where
+    /// [`Self::queues_shadows`]): its shadow rays with their contributions, and what it finds
+    /// without one, in order; [`ShadowQueue::resolve`] then adds them to its pixel. Returns
+    /// what the path added itself (nothing, in the scenes it runs in).
     #[allow(clippy::too_many_arguments)]
     #[inline(always)]
     pub fn radiance_queued<T: Tracer>(

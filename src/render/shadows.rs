@@ -6,7 +6,7 @@
 //! same product either way, times 1 or 0. So a path computes the contribution as if nothing
 //! were in the way, queues the ray with it, and the queue adds it to the path's pixel once the
 //! packet says the segment is clear: the same numbers as tracing first, added in the same
-//! order (`tests/stages.rs`).
+//! order (`tests/core.rs`, `staged_schedule_renders_the_reference_pixels`).
 
 use glam::Vec3;
 
