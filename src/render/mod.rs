@@ -171,39 +171,44 @@ pub fn render_tile_scheduled<T: Tracer>(
         match isa {
             Isa::Baseline => {}
             Isa::Avx2 => {
+                // Two functions, so that each holds only its own copy of the path.
                 let tile = (tiles, tile, pass);
-                return unsafe { tile_avx2(integrator, tracer, rays, tile, staged, stats) };
+                return match staged {
+                    true => unsafe { tile_avx2::<T, true>(integrator, tracer, rays, tile, stats) },
+                    false => unsafe {
+                        tile_avx2::<T, false>(integrator, tracer, rays, tile, stats)
+                    },
+                };
             }
         }
     }
     // One camera ray at a time: packets are traced with AVX2 only.
-    tile_samples::<T, 1>(integrator, tracer, rays, (tiles, tile, pass), false, stats)
+    tile_samples::<T, 1, false>(integrator, tracer, rays, (tiles, tile, pass), stats)
 }
 
 /// [`tile_samples`] for [`Isa::Avx2`]: everything it inlines is compiled with these features.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
-fn tile_avx2<T: Tracer>(
+fn tile_avx2<T: Tracer, const STAGED: bool>(
     integrator: &Integrator,
     tracer: &T,
     rays: &RayGenerator,
     tile: (Tiles, u32, u32),
-    staged: bool,
     stats: &mut Stats,
 ) -> Vec<Vec3> {
-    tile_samples::<T, PACKET>(integrator, tracer, rays, tile, staged, stats)
+    tile_samples::<T, PACKET, STAGED>(integrator, tracer, rays, tile, stats)
 }
 
 /// The body of [`render_tile`], inlined into each instruction-set variant, which traces the
-/// camera rays of `P` pixels at a time (at most [`PACKET`]) and, if `staged`, their paths'
-/// shadow rays too ([`Schedule::Staged`]).
+/// camera rays of `P` pixels at a time (at most [`PACKET`]) and, if `STAGED`, their paths'
+/// shadow rays too ([`Schedule::Staged`], for scenes where
+/// [`Integrator::queues_shadows`]).
 #[inline(always)]
-fn tile_samples<T: Tracer, const P: usize>(
+fn tile_samples<T: Tracer, const P: usize, const STAGED: bool>(
     integrator: &Integrator,
     tracer: &T,
     rays: &RayGenerator,
     (tiles, tile, pass): (Tiles, u32, u32),
-    staged: bool,
     stats: &mut Stats,
 ) -> Vec<Vec3> {
     let settings = integrator.settings();
@@ -217,7 +222,6 @@ fn tile_samples<T: Tracer, const P: usize>(
     // Camera rays are traced in packets of a row's consecutive pixels, which take nearly the
     // same path through the BVH; each path then continues from its hit, pixel by pixel.
     let traced = integrator.camera_hits_traced();
-    let staged = staged && P > 1;
     let mut queue = ShadowQueue::new();
     for y in y0..y0 + h {
         for x in (x0..x0 + w).step_by(P) {
@@ -235,7 +239,7 @@ fn tile_samples<T: Tracer, const P: usize>(
             if traced {
                 tracer.closest_hits(&origins[..n], &dirs[..n], 0.0, f32::INFINITY, &mut hits);
             }
-            if staged {
+            if STAGED {
                 // Each path gathers what needs no shadow ray and queues its shadow rays; the
                 // packet's shadow rays are then traced together.
                 let mut radiance = [Vec3::ZERO; P];
