@@ -8,7 +8,7 @@ has debug info), and charges the sample to the innermost inlined frame that lies
 portalview's own `src/`, by folder: the traversal (`scene/bvh`), the light's selection and
 sampling (`light/`), the warps and polygons (`sampling/`, without Sobol'), Sobol' numbers
 (`sampling/sobol.rs`), the BSDF (`material/`, `surface.rs`), textures, the path loop
-(`render/integrator.rs`), the continuation, the tile loop with the camera, and the film.
+(`render/integrator.rs`), the staged schedule's shadow queue (`render/shadows.rs`), the continuation, the tile loop with the camera, and the film.
 Scene set-up runs on the main thread and is left out.
 
     python3 bench/profile.py target/release/portalview --scene fig8a --strategy light
@@ -32,6 +32,7 @@ PARTS = [
     ("/surface.rs", "BSDF"),
     ("/asset/texture", "textures"),
     ("/render/continuation.rs", "BSDF sampling (continuation)"),
+    ("/render/shadows.rs", "shadow queue (staged schedule)"),
     ("/render/integrator.rs", "path loop (integrator)"),
     ("/render/stats.rs", "path loop (integrator)"),
     ("/render/film.rs", "film"),
