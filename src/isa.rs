@@ -1,5 +1,6 @@
 //! The instruction sets the renderer is compiled for, and the one this CPU runs: the tile
-//! renderer (`render::render_tile_isa`) and the BVH's node test (`scene::bvh`) both follow it.
+//! renderer (`render::render_tile_scheduled`) and the BVH's node test (`scene::bvh`) both
+//! follow it.
 
 /// The instruction sets the tile renderer is compiled for. One build runs on any x86-64: the
 /// renderer (traversal, shading and sampling, all inlined into it) is compiled once per variant,

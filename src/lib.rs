@@ -17,7 +17,7 @@
 //! ```
 
 // `unsafe` in two places: the tile renderer compiled for AVX2 (x86-64-v3) and the BVH's AVX2 node
-// test, each called only after the CPU was checked for them (`render::render_tile_isa`,
+// test, each called only after the CPU was checked for them (`render::render_tile_scheduled`,
 // `scene::bvh::node_hits`).
 #![deny(unsafe_code)]
 

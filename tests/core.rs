@@ -12,7 +12,7 @@ use portalview::render::integrator::{Integrator, RenderSettings};
 use portalview::render::record::Recorder;
 use portalview::render::stats::Stats;
 use portalview::render::{
-    Isa, Schedule, Tiles, render, render_pass, render_tile, render_tile_isa, render_tile_scheduled,
+    Isa, Schedule, Tiles, render, render_pass, render_tile, render_tile_scheduled,
 };
 use portalview::sampling::{Rng, SamplerKind};
 use portalview::scene::Scene;
@@ -327,8 +327,9 @@ fn instruction_set_variants_render_identical_pixels() {
                 for tile in 0..tiles.count() {
                     let render = |isa| {
                         let mut stats = Stats::default();
-                        let pixels = render_tile_isa(
+                        let pixels = render_tile_scheduled(
                             isa,
+                            Schedule::detect(),
                             &integrator,
                             bvh,
                             &rays,

@@ -70,7 +70,7 @@ fn replay(
 }
 
 /// [`trace_tile`] compiled for `isa` where this CPU runs it, as the renderer is
-/// (`render::render_tile_isa`): the raw side gets the same instructions as the renderer's.
+/// (`render::render_tile_scheduled`): the raw side gets the same instructions as the renderer's.
 fn trace_tile_isa(
     isa: Isa,
     bvh: &Bvh,

@@ -7,124 +7,20 @@ use std::time::Instant;
 
 use super::continuation::{Continuation, bounce_openings};
 use super::shadows::{ShadowQueue, Shadows, TraceNow};
+// What the integrator is asked to do (`render::settings`), named with it.
+pub use super::settings::{GlassShadows, GuideBounces, RenderSettings};
 use super::stats::{Stats, TIMING_STRIDE, timer_overhead};
 use crate::asset::desc::AlphaMode;
 use crate::light::area::LightPoint;
 use crate::light::bounce::{BounceGuide, GuideContext};
 use crate::light::estimator::{LightContext, LightSample, LightSampler, PickedLight};
 use crate::light::sky::{SkyContext, SkySample, SkySampler};
-use crate::light::{LightSet, Mixture, Selection, Strategy, Technique};
+use crate::light::{LightSet, Mixture, Technique};
 use crate::material::Material;
-use crate::sampling::{Frame, Sampler, SamplerKind, power_heuristic};
+use crate::sampling::{Frame, Sampler, power_heuristic};
 use crate::scene::bvh::{Hit, Tracer};
 use crate::scene::{NO_ATTRIBUTES, NO_LIGHT, Scene};
 use crate::surface::SurfacePoint;
-
-/// What a render is asked to do.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct RenderSettings {
-    pub strategy: Strategy,
-    /// Replaces every portal's alpha when set.
-    pub alpha: Option<f32>,
-    /// Path vertices after the camera: 1 = direct light only (the thesis's experiments).
-    pub max_depth: u32,
-    pub seed: u64,
-    /// Where the random numbers come from.
-    pub sampler: SamplerKind,
-    /// One sample of the light mixture per shading point, or one from each share.
-    pub mixture: Mixture,
-    /// How a shading point picks the light it samples.
-    pub selection: Selection,
-    /// Whether shadow rays cross thin glass or stop at it.
-    pub glass: GlassShadows,
-    /// Whether paths continue through the portals as well as by the BSDF.
-    pub bounces: GuideBounces,
-}
-
-/// Whether a path's next direction may be drawn through the portals (guided continuation,
-/// `docs/method.md` §12) or from the BSDF alone.
-#[derive(
-    Clone,
-    Copy,
-    Debug,
-    Default,
-    PartialEq,
-    Eq,
-    Hash,
-    serde::Serialize,
-    serde::Deserialize,
-    clap::ValueEnum,
-)]
-pub enum GuideBounces {
-    /// From a mixture of the BSDF and the openings bounced light leaves by: lamps' portals,
-    /// and windows with something outside them.
-    #[default]
-    On,
-    /// From the BSDF alone (light bounced inside a shade is found by chance).
-    Off,
-}
-
-impl GuideBounces {
-    pub const ALL: [GuideBounces; 2] = [GuideBounces::On, GuideBounces::Off];
-
-    pub fn label(self) -> &'static str {
-        match self {
-            GuideBounces::On => "on",
-            GuideBounces::Off => "off",
-        }
-    }
-}
-
-/// What a shadow ray does at smooth thin-walled glass (a pane, a globe's shell). BSDF paths
-/// cross it either way, as a null interface that is not a path vertex.
-#[derive(
-    Clone,
-    Copy,
-    Debug,
-    Default,
-    PartialEq,
-    Eq,
-    Hash,
-    serde::Serialize,
-    serde::Deserialize,
-    clap::ValueEnum,
-)]
-pub enum GlassShadows {
-    /// Through it, weighted by its straight-through transmittance: lights and windows behind
-    /// glass are sampled as if the glass were a filter (docs/method.md §6.3).
-    #[default]
-    Pass,
-    /// Stopped, as in Cycles: light reaches the far side of glass along BSDF paths only (whose
-    /// emission after a pane then takes the full weight, as light sampling could not reach it).
-    Stop,
-}
-
-impl GlassShadows {
-    pub const ALL: [GlassShadows; 2] = [GlassShadows::Pass, GlassShadows::Stop];
-
-    pub fn label(self) -> &'static str {
-        match self {
-            GlassShadows::Pass => "pass",
-            GlassShadows::Stop => "stop",
-        }
-    }
-}
-
-impl Default for RenderSettings {
-    fn default() -> Self {
-        RenderSettings {
-            strategy: Strategy::Antishadow,
-            alpha: None,
-            max_depth: 1,
-            seed: 0,
-            sampler: SamplerKind::default(),
-            mixture: Mixture::default(),
-            selection: Selection::default(),
-            glass: GlassShadows::default(),
-            bounces: GuideBounces::default(),
-        }
-    }
-}
 
 /// A shading point: where light is gathered and the next direction drawn.
 struct Shading<'m> {
@@ -453,7 +349,7 @@ impl<'a> Integrator<'a> {
 
     /// [`Self::radiance`] with every ray traced through `tracer`: the scene's BVH, or the
     /// benchmark's recorder of it. Always inlined, with the steps it calls: the tile renderer
-    /// compiles it once per instruction set (`render::render_tile_isa`). `contexts` is
+    /// compiles it once per instruction set (`render::render_tile_scheduled`). `contexts` is
     /// scratch room, reused from path to path.
     #[inline(always)]
     pub fn radiance_traced<T: Tracer>(
@@ -842,7 +738,8 @@ impl<'a> Integrator<'a> {
                 le * power_heuristic(prev.bsdf_pdf, light_pdf)
             }
         };
-        if Q::QUEUES && !GLASS && shadows.queue(o, d, tmax, weighted(le, prev)) {
+        if Q::QUEUES && !GLASS {
+            shadows.queue(o, d, tmax, weighted(le, prev));
             return Vec3::ZERO;
         }
         let (transmittance, crossings) = if self.has_panes::<GLASS>() {
@@ -1126,9 +1023,8 @@ impl<'a> Integrator<'a> {
         };
         if Q::QUEUES && !GLASS {
             let c = f * sample.irradiance * wi_local.z.abs() / lamp_prob;
-            if shadows.queue(origin, sample.wi, tmax, c) {
-                return Vec3::ZERO;
-            }
+            shadows.queue(origin, sample.wi, tmax, c);
+            return Vec3::ZERO;
         }
         let mut transmittance = self.visibility::<T, GLASS>(tracer, origin, sample.wi, tmax);
         if transmittance == Vec3::ZERO {
@@ -1233,8 +1129,8 @@ impl<'a> Integrator<'a> {
     /// mixture), weighted against BSDF sampling by the power heuristic, times `share` (of the
     /// light mixture, where each share draws); zero if something stands before `tmax`, or the
     /// direction is below the surface or has no density; times the transmittance of the thin
-    /// glass crossed ([`Self::visibility`]). A queue (`shadows`) may take the shadow ray and
-    /// the contribution instead: then zero.
+    /// glass crossed ([`Self::visibility`]). Where `shadows` queues, it takes the shadow ray
+    /// and the contribution instead: then zero.
     #[allow(clippy::too_many_arguments)]
     #[inline(always)]
     fn weighted<T: Tracer, const GLASS: bool, Q: Shadows>(
@@ -1263,9 +1159,8 @@ impl<'a> Integrator<'a> {
         stats.shadow_rays += 1;
         if Q::QUEUES && !GLASS {
             let c = f * le * wi_local.z.abs() * power_heuristic(light_pdf, bsdf_pdf) / light_pdf;
-            if shadows.queue(origin, wi, tmax, share * c) {
-                return Vec3::ZERO;
-            }
+            shadows.queue(origin, wi, tmax, share * c);
+            return Vec3::ZERO;
         }
         let mut transmittance = self.visibility::<T, GLASS>(tracer, origin, wi, tmax);
         if transmittance == Vec3::ZERO {

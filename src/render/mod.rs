@@ -5,6 +5,7 @@ pub mod film;
 pub mod integrator;
 pub mod primary;
 pub mod record;
+pub mod settings;
 pub mod shadows;
 pub mod shell;
 pub mod stats;
@@ -119,38 +120,14 @@ pub fn render_tile<T: Tracer>(
     pass: u32,
     stats: &mut Stats,
 ) -> Vec<Vec3> {
-    render_tile_isa(
-        Isa::detect(),
-        integrator,
-        tracer,
-        rays,
-        tiles,
-        tile,
-        pass,
-        stats,
-    )
-}
-
-/// [`render_tile`] compiled for `isa`, or for the baseline if this CPU cannot run it.
-#[allow(clippy::too_many_arguments)]
-pub fn render_tile_isa<T: Tracer>(
-    isa: Isa,
-    integrator: &Integrator,
-    tracer: &T,
-    rays: &RayGenerator,
-    tiles: Tiles,
-    tile: u32,
-    pass: u32,
-    stats: &mut Stats,
-) -> Vec<Vec3> {
-    let schedule = Schedule::detect();
+    let (isa, schedule) = (Isa::detect(), Schedule::detect());
     render_tile_scheduled(
         isa, schedule, integrator, tracer, rays, tiles, tile, pass, stats,
     )
 }
 
-/// [`render_tile_isa`] with the paths run as `schedule` says (where the scene and the CPU
-/// allow it).
+/// [`render_tile`] compiled for `isa` (or for the baseline if this CPU cannot run it), the
+/// paths run as `schedule` says (where the scene and the CPU allow it).
 #[allow(clippy::too_many_arguments)]
 pub fn render_tile_scheduled<T: Tracer>(
     isa: Isa,

@@ -15,11 +15,11 @@ use crate::scene::bvh::{NO_OCCLUDER, PACKET, Tracer};
 /// A sink for shadow rays and for the radiance a path gathers, chosen at compile time: the
 /// one-path copy of the integrator has no queueing code at all.
 pub trait Shadows {
-    /// Whether [`Self::queue`] may take rays.
+    /// Whether shadow rays go to [`Self::queue`] (else the caller traces them).
     const QUEUES: bool;
     /// Takes the shadow ray `o + t·d`, `t` in `(0, tmax)`, whose contribution if nothing stands
-    /// there is `c`; `false` where the caller must trace it itself.
-    fn queue(&mut self, o: Vec3, d: Vec3, tmax: f32, c: Vec3) -> bool;
+    /// there is `c`. Called only where [`Self::QUEUES`].
+    fn queue(&mut self, o: Vec3, d: Vec3, tmax: f32, c: Vec3);
     /// Where the next contributions queued will begin (how many are queued), for [`Self::close`].
     fn mark(&self) -> usize;
     /// Adds `value`, found without a shadow ray, to the path's radiance `l`.
@@ -36,9 +36,7 @@ impl Shadows for TraceNow {
     const QUEUES: bool = false;
 
     #[inline(always)]
-    fn queue(&mut self, _: Vec3, _: Vec3, _: f32, _: Vec3) -> bool {
-        false
-    }
+    fn queue(&mut self, _: Vec3, _: Vec3, _: f32, _: Vec3) {}
 
     #[inline(always)]
     fn mark(&self) -> usize {
@@ -139,11 +137,10 @@ impl Shadows for ShadowQueue {
     const QUEUES: bool = true;
 
     #[inline(always)]
-    fn queue(&mut self, o: Vec3, d: Vec3, tmax: f32, c: Vec3) -> bool {
+    fn queue(&mut self, o: Vec3, d: Vec3, tmax: f32, c: Vec3) {
         let ray = self.rays.len() as u32;
         self.rays.push((o, d, tmax));
         self.push(c, ray, None);
-        true
     }
 
     #[inline(always)]
@@ -158,7 +155,8 @@ impl Shadows for ShadowQueue {
 
     #[inline(always)]
     fn close(&mut self, _: &mut Vec3, from: usize, beta: Vec3, rest: Vec3) {
-        // `rest` is zero: this queue takes every ray.
+        // What the vertex gathered itself: nothing, as this queue takes every shadow ray, but
+        // kept in the sum should a path add some.
         if rest != Vec3::ZERO {
             self.push(rest, NO_RAY, None);
         }
