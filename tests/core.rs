@@ -286,18 +286,33 @@ fn statistics_count_every_traced_ray() {
 
 /// Every built-in scene, as it is and with test textures on every material, named.
 fn builtins_plain_and_textured() -> impl Iterator<Item = (String, Scene)> {
-    portalview::asset::builtin::NAMES.iter().flat_map(|&name| {
-        let desc = portalview::asset::builtin::desc(name).unwrap();
-        let textured = portalview::asset::builtin::with_test_textures(desc.clone());
-        [
-            (name.to_string(), desc),
-            (format!("{name}, textured"), textured),
-        ]
-        .map(|(name, desc)| {
-            let scene = Scene::from_desc(desc, &name).unwrap();
-            (name, scene)
+    builtins_with(false)
+}
+
+/// [`builtins_plain_and_textured`], and with `lambertian` each scene once more with every
+/// material exactly Lambertian (no specular layer), as the peer benchmark converts them.
+fn builtins_with(lambertian: bool) -> impl Iterator<Item = (String, Scene)> {
+    portalview::asset::builtin::NAMES
+        .iter()
+        .flat_map(move |&name| {
+            let desc = portalview::asset::builtin::desc(name).unwrap();
+            let textured = portalview::asset::builtin::with_test_textures(desc.clone());
+            let mut plain = desc.clone();
+            for m in &mut plain.materials {
+                (m.specular_factor, m.metallic, m.clearcoat) = (0.0, 0.0, 0.0);
+            }
+            [
+                Some((name.to_string(), desc)),
+                Some((format!("{name}, textured"), textured)),
+                lambertian.then(|| (format!("{name}, Lambertian"), plain)),
+            ]
+            .into_iter()
+            .flatten()
+            .map(|(name, desc)| {
+                let scene = Scene::from_desc(desc, &name).unwrap();
+                (name, scene)
+            })
         })
-    })
 }
 
 /// The renderer is compiled for baseline x86-64 and for x86-64-v3 (AVX2, FMA), the variant
@@ -410,19 +425,20 @@ impl Tracer for CountingPackets<'_> {
     }
 }
 
-/// The staged schedule (a packet's shadow rays queued with their contributions and traced
-/// together) renders the pixels of the one-path reference, bit for bit, and counts the same
-/// rays: on every built-in scene (textured too), with every strategy, sampler, mixture and
-/// light selection, for direct light and longer paths. The staged side must have traced its
-/// shadow rays in packets on every scene without glass, or it compared the reference with
-/// itself.
+/// The staged schedule (a packet's first vertices shaded in lanes, its shadow rays queued with
+/// their contributions and traced together) renders the pixels of the one-path reference, bit
+/// for bit, and counts the same rays: on every built-in scene (textured, and with every
+/// material Lambertian, too), with every strategy, sampler, mixture and light selection, for
+/// direct light and longer paths. The staged side must have traced its shadow rays in packets
+/// and shaded first vertices in lanes on every scene without glass, or it compared the
+/// reference with itself.
 #[test]
 fn staged_schedule_renders_the_reference_pixels() {
     let isa = Isa::detect();
     if isa == Isa::Baseline {
         eprintln!("no AVX2: both schedules run one path at a time here");
     }
-    for (name, scene) in builtins_plain_and_textured() {
+    for (name, scene) in builtins_with(true) {
         let settings = Strategy::ALL.into_iter().flat_map(|strategy| {
             [(1, SamplerKind::Sobol), (3, SamplerKind::Independent)]
                 .into_iter()
@@ -468,19 +484,21 @@ fn staged_schedule_renders_the_reference_pixels() {
                     })
                     .map(|p| p.to_array().map(f32::to_bits))
                     .collect();
-                // Every count but the sampling time, which is measured.
-                (
-                    pixels,
-                    Stats {
-                        sampling_ns: 0,
-                        ..stats
-                    },
-                )
+                // Every count but the sampling time, which is measured, and the first
+                // vertices shaded in lanes, which only the staged schedule does.
+                let lane_vertices = stats.lane_vertices;
+                let stats = Stats {
+                    sampling_ns: 0,
+                    lane_vertices: 0,
+                    ..stats
+                };
+                (pixels, stats, lane_vertices)
             };
             let label = format!("{name}, {settings:?}");
-            let (reference, reference_stats) = render(Schedule::Paths);
+            let (reference, reference_stats, none) = render(Schedule::Paths);
             assert_eq!(tracer.packed.get(), 0, "{label}: the reference queued rays");
-            let (staged, staged_stats) = render(Schedule::Staged);
+            assert_eq!(none, 0, "{label}: the reference shaded vertices in lanes");
+            let (staged, staged_stats, lane_vertices) = render(Schedule::Staged);
             assert_eq!(reference.len(), staged.len(), "{label}");
             if let Some(i) = (0..reference.len()).find(|&i| reference[i] != staged[i]) {
                 let bits = |p: [u32; 3]| p.map(f32::from_bits);
@@ -498,6 +516,12 @@ fn staged_schedule_renders_the_reference_pixels() {
                     staged_stats.shadow_rays,
                     "{label}: not every shadow ray went through the queue"
                 );
+                // Or it compared the one-path first vertex with itself (on the Lambertian
+                // scenes, with the BSDF's draws in lanes too). Textured surfaces take the
+                // one-path first vertex.
+                if settings.max_depth == 1 && !name.ends_with("textured") {
+                    assert!(lane_vertices > 0, "{label}: no first vertex in lanes");
+                }
             }
         }
     }

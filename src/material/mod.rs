@@ -569,6 +569,16 @@ impl Material {
         self.metallic > 0.0 || self.f90 > 0.0 || self.f0.max_element() > 0.0
     }
 
+    /// The albedo of a material that is exactly Lambertian (no dielectric boundary, specular
+    /// layer, coat or rough transmission): its `eval_pdf` above the surface is then
+    /// `(albedo / π, cos θi / π)` and `sample_direction` the cosine-weighted hemisphere, which
+    /// the packet integrator computes in lanes.
+    pub fn lambertian_albedo(&self) -> Option<Vec3> {
+        let plain =
+            self.eta <= 0.0 && !self.has_specular() && !self.transmits_rough() && !self.has_coat();
+        plain.then(|| self.diffuse_color())
+    }
+
     /// `f(wo, wi)` and the pdf of `sample` drawing `wi`, sharing the microfacet terms.
     #[inline(always)]
     pub fn eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {

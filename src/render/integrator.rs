@@ -5,6 +5,8 @@ use arrayvec::ArrayVec;
 use glam::Vec3;
 use std::time::Instant;
 
+mod packet;
+
 use super::continuation::{Continuation, bounce_openings};
 use super::shadows::{ShadowQueue, Shadows, TraceNow};
 // What the integrator is asked to do (`render::settings`), named with it.
@@ -155,6 +157,46 @@ impl Default for PathContexts {
     fn default() -> Self {
         Self::new()
     }
+}
+
+/// Where [`Integrator::path`] starts: a ray (its closest hit traced ahead, if `hit` is `Some`;
+/// with `at_pane`, that hit is thin glass the path reflects at), or the vertex after one that
+/// the packet's stages drew (`render::packet`), with the throughput so far and the previous
+/// vertex's `(x, ng, light context filled, continuation pdf)` for MIS.
+pub(super) struct PathStart {
+    pub o: Vec3,
+    pub d: Vec3,
+    pub hit: Option<Option<Hit>>,
+    pub at_pane: bool,
+    pub beta: Vec3,
+    pub previous: Option<(Vec3, Vec3, bool, f32)>,
+    pub depth: u32,
+}
+
+impl PathStart {
+    /// A path that starts with the ray `o + t·d`.
+    #[inline(always)]
+    fn ray(o: Vec3, d: Vec3, hit: Option<Option<Hit>>, at_pane: bool) -> Self {
+        PathStart {
+            o,
+            d,
+            hit,
+            at_pane,
+            beta: Vec3::ONE,
+            previous: None,
+            depth: 0,
+        }
+    }
+}
+
+/// The next direction a path takes ([`Integrator::scatter`]).
+struct Scatter {
+    origin: Vec3,
+    wi: Vec3,
+    wi_local: Vec3,
+    /// `f · cos θi / pdf`: what the throughput is multiplied by.
+    weight: Vec3,
+    pdf: f32,
 }
 
 /// Next-event estimation's result at one shading point.
@@ -390,14 +432,12 @@ impl<'a> Integrator<'a> {
         // (with them, those scenes' samples took 3–5% longer: docs/performance.md).
         if self.panes || self.volumes {
             let now = &mut TraceNow;
-            self.path::<T, true, _>(
-                tracer, origin, dir, camera_hit, false, rng, stats, contexts, now,
-            )
+            let start = PathStart::ray(origin, dir, camera_hit, false);
+            self.path::<T, true, _>(tracer, start, rng, stats, contexts, now)
         } else {
             let now = &mut TraceNow;
-            self.path::<T, false, _>(
-                tracer, origin, dir, camera_hit, false, rng, stats, contexts, now,
-            )
+            let start = PathStart::ray(origin, dir, camera_hit, false);
+            self.path::<T, false, _>(tracer, start, rng, stats, contexts, now)
         }
     }
 
@@ -426,9 +466,8 @@ impl<'a> Integrator<'a> {
     ) -> Vec3 {
         debug_assert!(self.queues_shadows());
         stats.camera_rays += 1;
-        self.path::<T, false, _>(
-            tracer, origin, dir, camera_hit, false, rng, stats, contexts, shadows,
-        )
+        let start = PathStart::ray(origin, dir, camera_hit, false);
+        self.path::<T, false, _>(tracer, start, rng, stats, contexts, shadows)
     }
 
     /// The radiance a path gathers from `origin` along `dir`, whose first hit may be traced
@@ -437,13 +476,10 @@ impl<'a> Integrator<'a> {
     /// ([`Self::cross_panes`]).
     #[allow(clippy::too_many_arguments)]
     #[inline(always)]
-    fn path<T: Tracer, const GLASS: bool, Q: Shadows>(
+    pub(super) fn path<T: Tracer, const GLASS: bool, Q: Shadows>(
         &self,
         tracer: &T,
-        origin: Vec3,
-        dir: Vec3,
-        mut camera_hit: Option<Option<Hit>>,
-        mut at_pane: bool,
+        start: PathStart,
         rng: &mut Sampler,
         stats: &mut Stats,
         contexts: &mut PathContexts,
@@ -451,16 +487,21 @@ impl<'a> Integrator<'a> {
     ) -> Vec3 {
         let geometry = &*self.scene.geometry;
         let mut l = Vec3::ZERO;
-        let mut beta = Vec3::ONE;
-        let (mut o, mut d) = (origin, dir);
+        let PathStart {
+            mut o,
+            mut d,
+            hit: mut camera_hit,
+            mut at_pane,
+            mut beta,
+            mut previous,
+            mut depth,
+        } = start;
         // Two context buffers, reused in turn by consecutive vertices (see `fill_context`).
         let PathContexts { even, odd, guide } = contexts;
-        let mut previous: Option<(Vec3, Vec3, bool, f32)> = None;
         // The medium the ray travels in (absorbing inside a volume), and the smooth
         // dielectric events so far, which do not count as depth.
         let mut sigma = Vec3::ZERO;
         let mut interface_events = 0;
-        let mut depth = 0;
         while depth <= self.settings.max_depth {
             // At the last vertex only emission matters: with polygon lights, test them directly.
             if depth == self.settings.max_depth && self.polygon_lights {
@@ -651,27 +692,17 @@ impl<'a> Integrator<'a> {
             // The next direction: from the BSDF, or through the openings (guided continuation),
             // and MIS for the light it may hit with the mixture's density.
             let last = depth + 1 == self.settings.max_depth;
-            let ([u_lobe], u) = rng.uniforms_uniform2();
-            let continuation = shading.continuation;
-            let Some((wi, wi_local)) =
-                continuation.sample(material, &shading.frame, shading.wo_local, u_lobe, u)
+            let Some(Scatter {
+                origin,
+                wi,
+                wi_local,
+                weight,
+                pdf,
+            }) = self.scatter(&shading, rng, last)
             else {
                 break;
             };
-            let Some(origin) = shading.origin(wi, wi_local) else {
-                break;
-            };
-            // Before the last vertex, a direction that meets no light polygon gathers nothing:
-            // skip evaluating the BSDF for it (most directions, in these scenes).
-            if last && self.polygon_lights && self.nearest_light_polygon(origin, wi).is_none() {
-                break;
-            }
-            let (f, bsdf_pdf) = material.eval_pdf(shading.wo_local, wi_local);
-            let pdf = continuation.pdf(bsdf_pdf, wi);
-            if pdf.is_nan() || pdf <= 0.0 || f == Vec3::ZERO {
-                break;
-            }
-            beta *= f * shading.bump_shadowing(wi) * wi_local.z.abs() / pdf;
+            beta *= weight;
             if !beta.is_finite() {
                 break;
             }
@@ -783,6 +814,38 @@ impl<'a> Integrator<'a> {
                 le * power_heuristic(bsdf_pdf, light_pdf)
             }
         }
+    }
+
+    /// The next direction from shading point `s`: drawn from its continuation (the BSDF, or
+    /// the BSDF and the openings), where a ray leaves for it, and the throughput's factor
+    /// `f · cos / pdf` with the continuation's `pdf`; `None` where the path ends there. With
+    /// `last` (the vertex it leads to only gathers emission), in a scene of polygon lights, a
+    /// direction that meets none ends it before the BSDF is evaluated.
+    #[inline(always)]
+    fn scatter(&self, s: &Shading, rng: &mut Sampler, last: bool) -> Option<Scatter> {
+        let ([u_lobe], u) = rng.uniforms_uniform2();
+        let (wi, wi_local) = s
+            .continuation
+            .sample(s.material, &s.frame, s.wo_local, u_lobe, u)?;
+        let origin = s.origin(wi, wi_local)?;
+        // Before the last vertex, a direction that meets no light polygon gathers nothing:
+        // skip evaluating the BSDF for it (most directions, in these scenes).
+        if last && self.polygon_lights && self.nearest_light_polygon(origin, wi).is_none() {
+            return None;
+        }
+        let (f, bsdf_pdf) = s.material.eval_pdf(s.wo_local, wi_local);
+        let pdf = s.continuation.pdf(bsdf_pdf, wi);
+        if pdf.is_nan() || pdf <= 0.0 || f == Vec3::ZERO {
+            return None;
+        }
+        let weight = f * s.bump_shadowing(wi) * wi_local.z.abs() / pdf;
+        Some(Scatter {
+            origin,
+            wi,
+            wi_local,
+            weight,
+            pdf,
+        })
     }
 
     /// The light whose polygon the ray `o + t·d` meets first, and the distance `t`.
@@ -1255,17 +1318,8 @@ impl<'a> Integrator<'a> {
     ) -> Vec3 {
         // Its own contexts: the camera path has filled none yet, but holds them borrowed.
         let mut contexts = PathContexts::new();
-        self.path::<T, true, _>(
-            tracer,
-            o,
-            d,
-            Some(Some(hit)),
-            true,
-            rng,
-            stats,
-            &mut contexts,
-            &mut TraceNow,
-        )
+        let start = PathStart::ray(o, d, Some(Some(hit)), true);
+        self.path::<T, true, _>(tracer, start, rng, stats, &mut contexts, &mut TraceNow)
     }
 
     /// What a shadow ray lets through on the open segment `o + t·d`, `t` in `(0, tmax)`: 0

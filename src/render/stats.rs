@@ -30,6 +30,9 @@ pub struct Stats {
     pub sampling_ns: u64,
     /// Samples per pixel accumulated in these counts.
     pub samples: u64,
+    /// Paths whose first vertex was shaded in a packet's lanes (the staged schedule's,
+    /// `Integrator::radiance_packet`); the others ran it one path at a time.
+    pub lane_vertices: u64,
     /// Radiance samples that came out NaN or infinite and were replaced by zero: a symptom of
     /// a bug (or of a scene beyond f32), shown wherever statistics are, never silently lost.
     pub nonfinite: u64,
@@ -119,6 +122,7 @@ impl AddAssign for Stats {
         self.sampling_ns += o.sampling_ns;
         self.samples += o.samples;
         self.nonfinite += o.nonfinite;
+        self.lane_vertices += o.lane_vertices;
     }
 }
 

@@ -1,11 +1,13 @@
 //! Domain-free sampling maths: random numbers, warps with their pdfs, convex polygons and
 //! spherical polygons.
 
+pub mod lanes;
 pub mod polygon;
 pub mod sobol;
 pub mod spherical;
 
 use glam::{Vec2, Vec3};
+use lanes::{F32s, Mask, Vec2s, Vec3s};
 
 /// PCG32 (O'Neill 2014): small, fast, and seeded per pixel and pass so that an image does not
 /// depend on how work was split across threads.
@@ -246,6 +248,18 @@ pub fn sin_cos_quarter(a: f32) -> (f32, f32) {
     (sin, cos)
 }
 
+/// [`sin_cos_quarter`] in lanes.
+#[inline(always)]
+pub fn sin_cos_quarter_lanes(a: F32s) -> (F32s, F32s) {
+    let a2 = a * a;
+    let sin =
+        a * (1.0 + a2 * (-1.0 / 6.0 + a2 * (1.0 / 120.0 + a2 * (-1.0 / 5040.0 + a2 / 362_880.0))));
+    let cos = 1.0
+        + a2 * (-0.5
+            + a2 * (1.0 / 24.0 + a2 * (-1.0 / 720.0 + a2 * (1.0 / 40_320.0 - a2 / 3_628_800.0))));
+    (sin, cos)
+}
+
 /// `(sin 2πu, cos 2πu)`: the angle reduced to within 45° of a multiple of 90°.
 #[inline]
 pub fn sin_cos_turn(u: f32) -> (f32, f32) {
@@ -289,6 +303,49 @@ impl Frame {
     }
 }
 
+/// [`Frame`] in lanes.
+#[derive(Clone, Copy, Debug)]
+pub struct Frames {
+    pub t: Vec3s,
+    pub b: Vec3s,
+    pub n: Vec3s,
+}
+
+impl Frames {
+    /// [`Frame::from_normal`] in lanes.
+    #[inline(always)]
+    pub fn from_normal(n: Vec3s) -> Self {
+        let sign = n.z.map(|z| 1.0_f32.copysign(z));
+        let a = -1.0 / (sign + n.z);
+        let b = n.x * n.y * a;
+        Frames {
+            t: Vec3s::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x),
+            b: Vec3s::new(b, sign + n.y * n.y * a, -n.y),
+            n,
+        }
+    }
+
+    #[inline(always)]
+    pub fn to_world(&self, v: Vec3s) -> Vec3s {
+        self.t.scale(v.x) + self.b.scale(v.y) + self.n.scale(v.z)
+    }
+
+    #[inline(always)]
+    pub fn to_local(&self, v: Vec3s) -> Vec3s {
+        Vec3s::new(v.dot(self.t), v.dot(self.b), v.dot(self.n))
+    }
+
+    /// Lane `i`.
+    #[inline(always)]
+    pub fn lane(&self, i: usize) -> Frame {
+        Frame {
+            t: self.t.lane(i),
+            b: self.b.lane(i),
+            n: self.n.lane(i),
+        }
+    }
+}
+
 /// A uniform direction on the unit sphere (pdf [`UNIFORM_SPHERE_PDF`]).
 #[inline(always)]
 pub fn sample_uniform_sphere(u: Vec2) -> Vec3 {
@@ -309,8 +366,24 @@ pub fn sample_cosine_hemisphere(u: Vec2) -> Vec3 {
     Vec3::new(d.x, d.y, z)
 }
 
+/// [`sample_cosine_hemisphere`] in lanes.
+#[inline(always)]
+pub fn sample_cosine_hemisphere_lanes(u: Vec2s) -> Vec3s {
+    let d = sample_concentric_disk_lanes(u);
+    let z = (1.0 - ((d.x * d.x) + (d.y * d.y)))
+        .max(F32s::splat(0.0))
+        .sqrt();
+    Vec3s::new(d.x, d.y, z)
+}
+
 pub fn cosine_hemisphere_pdf(cos_theta: f32) -> f32 {
     cos_theta.max(0.0) * std::f32::consts::FRAC_1_PI
+}
+
+/// [`cosine_hemisphere_pdf`] in lanes.
+#[inline(always)]
+pub fn cosine_hemisphere_pdf_lanes(cos_theta: F32s) -> F32s {
+    cos_theta.max(F32s::splat(0.0)) * std::f32::consts::FRAC_1_PI
 }
 
 /// Shirley–Chiu concentric map from the unit square to the unit disk.
@@ -328,6 +401,29 @@ pub fn sample_concentric_disk(u: Vec2) -> Vec2 {
     } else {
         let (s, c) = sin_cos_quarter(std::f32::consts::FRAC_PI_4 * (o.x / o.y));
         o.y * Vec2::new(s, c)
+    }
+}
+
+/// [`sample_concentric_disk`] in lanes: both branches, then each lane's.
+#[inline(always)]
+pub fn sample_concentric_disk_lanes(u: Vec2s) -> Vec2s {
+    let (ox, oy) = (2.0 * u.x - 1.0, 2.0 * u.y - 1.0);
+    let mut zero: Mask = ox.test(F32s::splat(0.0), |a, b| a == b);
+    for (zero, &y) in zero
+        .iter_mut()
+        .zip(&oy.test(F32s::splat(0.0), |a, b| a == b))
+    {
+        *zero &= y;
+    }
+    let x_wider = ox.abs().test(oy.abs(), |a, b| a > b);
+    let ratio = F32s::select(x_wider, oy / ox, ox / oy);
+    let (s, c) = sin_cos_quarter_lanes(std::f32::consts::FRAC_PI_4 * ratio);
+    let x = F32s::select(x_wider, ox * c, oy * s);
+    let y = F32s::select(x_wider, ox * s, oy * c);
+    let none = F32s::splat(0.0);
+    Vec2s {
+        x: F32s::select(zero, none, x),
+        y: F32s::select(zero, none, y),
     }
 }
 
@@ -524,6 +620,51 @@ mod tests {
                         }
                     }
                 }
+            }
+        }
+    }
+
+    #[test]
+    fn lane_warps_and_frames_match_the_scalar_ones() {
+        use lanes::LANES;
+        let mut rng = Rng::new(11, 3);
+        let bits = |v: Vec3| v.to_array().map(f32::to_bits);
+        for round in 0..256 {
+            let mut u: [Vec2; LANES] = std::array::from_fn(|_| rng.uniform2());
+            // The disk's centre and its diagonals, where the branches meet.
+            if round == 0 {
+                u[0] = Vec2::splat(0.5);
+                u[1] = Vec2::new(0.75, 0.75);
+                u[2] = Vec2::new(0.25, 0.75);
+                u[3] = Vec2::ZERO;
+            }
+            let n: [Vec3; LANES] = std::array::from_fn(|i| match i {
+                // Both signs of z, and the poles.
+                6 => Vec3::Z,
+                7 => -Vec3::Z,
+                _ => sample_uniform_sphere(rng.uniform2()),
+            });
+            let v: [Vec3; LANES] = std::array::from_fn(|_| sample_uniform_sphere(rng.uniform2()));
+            let disk = sample_concentric_disk_lanes(Vec2s::from_fn(|i| u[i]));
+            let wi = sample_cosine_hemisphere_lanes(Vec2s::from_fn(|i| u[i]));
+            let frames = Frames::from_normal(Vec3s::from_fn(|i| n[i]));
+            let vs = Vec3s::from_fn(|i| v[i]);
+            let (world, local) = (frames.to_world(vs), frames.to_local(vs));
+            let pdf = cosine_hemisphere_pdf_lanes(wi.z);
+            for i in 0..LANES {
+                let d = sample_concentric_disk(u[i]);
+                assert_eq!(
+                    disk.lane(i).to_array().map(f32::to_bits),
+                    d.to_array().map(f32::to_bits)
+                );
+                let w = sample_cosine_hemisphere(u[i]);
+                assert_eq!(bits(wi.lane(i)), bits(w));
+                assert_eq!(pdf.0[i].to_bits(), cosine_hemisphere_pdf(w.z).to_bits());
+                let frame = Frame::from_normal(n[i]);
+                let lane = frames.lane(i);
+                assert_eq!([bits(lane.t), bits(lane.b)], [bits(frame.t), bits(frame.b)]);
+                assert_eq!(bits(world.lane(i)), bits(frame.to_world(v[i])));
+                assert_eq!(bits(local.lane(i)), bits(frame.to_local(v[i])));
             }
         }
     }
