@@ -8,7 +8,9 @@ has debug info), and charges the sample to the innermost inlined frame that lies
 portalview's own `src/`, by folder: the traversal (`scene/bvh`), the light's selection and
 sampling (`light/`), the warps and polygons (`sampling/`, without Sobol'), Sobol' numbers
 (`sampling/sobol.rs`), the BSDF (`material/`, `surface.rs`), textures, the path loop
-(`render/integrator.rs`), the staged schedule's shadow queue (`render/shadows.rs`), the continuation, the tile loop with the camera, and the film.
+(`render/integrator.rs`), the staged schedule's first vertices in lanes
+(`render/integrator/packet.rs`, `sampling/lanes.rs`) and shadow queue (`render/shadows.rs`),
+the continuation, the tile loop with the camera, and the film.
 Scene set-up runs on the main thread and is left out.
 
     python3 bench/profile.py target/release/portalview --scene fig8a --strategy light
@@ -26,6 +28,8 @@ import tempfile
 PARTS = [
     ("/scene/bvh/", "rays (traversal)"),
     ("/sampling/sobol.rs", "random numbers (Sobol')"),
+    ("/sampling/lanes.rs", "first vertices in lanes (render/integrator/packet.rs)"),
+    ("/render/integrator/packet.rs", "first vertices in lanes (render/integrator/packet.rs)"),
     ("/sampling/", "warps, polygons (sampling/)"),
     ("/light/", "light selection and sampling (light/)"),
     ("/material/", "BSDF"),

@@ -211,7 +211,8 @@ impl Vec3s {
     #[inline(always)]
     pub fn normalize_or_zero(self) -> Self {
         let rcp = 1.0 / self.dot(self).sqrt();
-        let ok = rcp.test(F32s::splat(0.0), |r, zero| r.is_finite() && r > zero);
+        // `is_finite() && > 0` as two comparisons, which vectorise (`is_finite` does not).
+        let ok = rcp.test(F32s::splat(0.0), |r, zero| r > zero && r < f32::INFINITY);
         Vec3s::select(ok, self.scale(rcp), Vec3s::default())
     }
 

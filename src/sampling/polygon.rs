@@ -5,6 +5,8 @@
 use arrayvec::ArrayVec;
 use glam::{Vec2, Vec3};
 
+use super::lanes::{F32s, Mask, Vec3s};
+
 /// The most vertices a light or portal polygon may have.
 pub const MAX_POLYGON_VERTICES: usize = 12;
 /// Room for a clipped polygon: clipping a convex polygon by `k` planes adds at most `k` vertices.
@@ -395,6 +397,25 @@ impl ConvexPolygon {
         self.contains_coplanar(o + t * dir).then_some(t)
     }
 
+    /// Whether the rays `o + t·dir` of each lane hit the polygon ([`Self::intersect`] lane by
+    /// lane, its answer's `is_some`).
+    #[inline(always)]
+    pub fn hits_lanes(&self, o: Vec3s, dir: Vec3s) -> Mask {
+        let plane = self.plane();
+        let n = Vec3s::splat(plane.n);
+        // `Plane::intersect`: a zero `denom` makes `t` infinite or NaN, which the test refuses.
+        let t = (plane.d - n.dot(o)) / n.dot(dir);
+        let mut hit = t.test(F32s::splat(0.0), |t, zero| t > zero && t < f32::INFINITY);
+        let p = o + dir.scale(t);
+        for (edge, &a) in self.edge_planes.iter().zip(&self.vertices) {
+            let inside = Vec3s::splat(edge.n).dot(p - Vec3s::splat(a));
+            for (hit, &inside) in hit.iter_mut().zip(&inside.0) {
+                *hit &= inside >= 0.0;
+            }
+        }
+        hit
+    }
+
     /// Whether `p`, assumed on the polygon's plane, is inside it (boundary included).
     #[inline(always)]
     pub fn contains_coplanar(&self, p: Vec3) -> bool {
@@ -783,6 +804,46 @@ mod tests {
             Vec3::new(1.0, 1.0, 0.0),
             Vec3::new(0.0, 1.0, 0.0),
         ]
+    }
+
+    #[test]
+    fn lane_hits_match_intersect() {
+        use crate::sampling::lanes::LANES;
+        let tilted: Vec<Vec3> = square()
+            .iter()
+            .map(|&v| Vec3::new(v.x, v.y, 0.3 * v.x - 0.2 * v.y) + Vec3::new(-0.5, 0.2, 1.0))
+            .collect();
+        let mut rng = crate::sampling::Rng::new(3, 4);
+        for polygon in [square(), tilted].map(|v| ConvexPolygon::new(&v).unwrap()) {
+            let mut hits = 0;
+            for round in 0..512 {
+                let o: [Vec3; LANES] = std::array::from_fn(|_| {
+                    Vec3::new(rng.uniform(), rng.uniform(), rng.uniform() - 0.5) * 3.0 - 1.0
+                });
+                // Toward points around the polygon (its box, grown by half), some backwards.
+                let mut dir: [Vec3; LANES] = std::array::from_fn(|i| {
+                    let target = Vec3::new(rng.uniform(), rng.uniform(), 0.0) * 2.0 - 0.5;
+                    let target = polygon.vertices()[0] + target.x * Vec3::X + target.y * Vec3::Y;
+                    let d = (target - o[i]).normalize();
+                    if rng.uniform() < 0.2 { -d } else { d }
+                });
+                // Parallel to the plane, and through a vertex and an edge.
+                if round == 0 {
+                    dir[0] = Vec3::X;
+                    dir[1] = (polygon.vertices()[0] - o[1]).normalize();
+                    dir[2] = (polygon.vertices()[1] + polygon.vertices()[2]) * 0.5 - o[2];
+                }
+                let lanes =
+                    polygon.hits_lanes(Vec3s::from_fn(|i| o[i]), Vec3s::from_fn(|i| dir[i]));
+                for i in 0..LANES {
+                    let scalar = polygon.intersect(o[i], dir[i]).is_some();
+                    assert_eq!(lanes[i], scalar, "{:?} {:?}", o[i], dir[i]);
+                    hits += scalar as u32;
+                }
+            }
+            // Both answers were met many times.
+            assert!(hits > 200 && hits < 512 * 8 - 200, "{hits}");
+        }
     }
 
     #[test]

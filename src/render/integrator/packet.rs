@@ -25,7 +25,8 @@ use crate::scene::{NO_ATTRIBUTES, NO_LIGHT, SceneTriangle};
 const _: () = assert!(crate::scene::bvh::PACKET == LANES);
 
 /// The first shading points of a packet's paths ([`Integrator::shading`] lane by lane, for
-/// surfaces without a normal map that do not transmit).
+/// surfaces without a normal map that do not transmit), with their materials' Lambertian
+/// values.
 struct Points {
     x: Vec3s,
     ng: Vec3s,
@@ -35,6 +36,10 @@ struct Points {
     /// Lanes where the shading normal is the interpolated one and `wo` lies above it: where
     /// the scalar code's `shading` gives this point with no bump term.
     plain: Mask,
+    /// Lanes whose material is exactly Lambertian (`Material::lambertian_albedo`), and its
+    /// value `albedo / π` there (zero elsewhere).
+    lambertian: Mask,
+    f: Vec3s,
 }
 
 impl Integrator<'_> {
@@ -42,7 +47,8 @@ impl Integrator<'_> {
     /// `hits` if traced ahead ([`Self::camera_hits_traced`]): what each path gathers is
     /// queued in `queue` (lane `i` for ray `i`), which the caller resolves; returns what the
     /// paths added themselves, as [`Self::radiance_queued`] does. Lane `i` fills
-    /// `contexts[i]`.
+    /// `contexts[i]` where its first vertex is shaded in lanes (it holds it until its second),
+    /// else `contexts[LANES]`: `contexts` holds at least `LANES + 1`.
     #[allow(clippy::too_many_arguments)]
     #[inline(always)]
     pub fn radiance_packet<T: Tracer>(
@@ -82,37 +88,23 @@ impl Integrator<'_> {
             .iter()
             .any(Option::is_some)
             .then(|| self.points(rays, &lanes));
+        // The lanes past their light samples: their shading points and whether each picked
+        // an area light (its context filled, for MIS at the next vertex).
         let mut next: [Option<(Shading, bool)>; LANES] = [const { None }; LANES];
         for i in 0..n {
             let (o, d) = rays[i];
             queue.set_lane(i);
-            let (Some(hit), Some(points)) = (lanes[i], &points) else {
+            let staged = lanes[i].zip(points.as_ref()).filter(|(_, p)| p.plain[i]);
+            let rng = &mut rngs[i];
+            let Some((hit, points)) = staged else {
+                // The one-path integrator from the camera ray, with the contexts that no lane
+                // holds (one for all, as warm in the cache as the reference's).
                 let hit = hits.map(|h| h[i]);
-                radiance[i] = self.radiance_queued(
-                    tracer,
-                    o,
-                    d,
-                    hit,
-                    &mut rngs[i],
-                    stats,
-                    &mut contexts[i],
-                    queue,
-                );
+                let contexts = &mut contexts[LANES];
+                radiance[i] = self.radiance_queued(tracer, o, d, hit, rng, stats, contexts, queue);
                 continue;
             };
-            if !points.plain[i] {
-                radiance[i] = self.radiance_queued(
-                    tracer,
-                    o,
-                    d,
-                    Some(Some(*hit)),
-                    &mut rngs[i],
-                    stats,
-                    &mut contexts[i],
-                    queue,
-                );
-                continue;
-            }
+            let contexts = &mut contexts[i];
             // The light sample, per lane: `path` at its first vertex.
             stats.camera_rays += 1;
             stats.lane_vertices += 1;
@@ -134,9 +126,9 @@ impl Integrator<'_> {
             let direct = self.sample_direct::<T, false, _>(
                 tracer,
                 &shading,
-                &mut rngs[i],
+                rng,
                 stats,
-                &mut contexts[i].even,
+                &mut contexts.even,
                 queue,
             );
             let picked = direct.is_some_and(|d| d.context_filled);
@@ -144,7 +136,10 @@ impl Integrator<'_> {
             queue.close(l, from, Vec3::ONE, direct.map_or(Vec3::ZERO, |d| d.l));
             next[i] = Some((shading, picked));
         }
-        let mut starts = self.scatter_lanes(&next, rngs);
+        let Some(points) = points else {
+            return radiance;
+        };
+        let mut starts = self.scatter_lanes((&points, &next), rngs);
         for i in 0..n {
             let Some(start) = starts[i].take() else {
                 continue;
@@ -162,14 +157,20 @@ impl Integrator<'_> {
     #[inline(always)]
     fn points(&self, rays: &[(Vec3, Vec3)], hits: &[Option<&Hit>; LANES]) -> Points {
         let geometry = &*self.scene.geometry;
-        // Each lane's triangle, barycentrics and direction, gathered once.
+        // Each lane's triangle, barycentrics, direction and albedo, gathered once.
         let any = hits.iter().flatten().next().copied();
         let (mut tris, mut bary, mut d) = ([None; LANES], [Vec2::ZERO; LANES], [Vec3::Z; LANES]);
+        let (mut albedo, mut lambertian) = ([Vec3::ZERO; LANES], [false; LANES]);
         for i in 0..LANES {
             let Some(hit) = hits[i].or(any) else {
                 continue;
             };
-            tris[i] = geometry.triangles.get(hit.triangle as usize);
+            let tri = geometry.triangles.get(hit.triangle as usize);
+            let material = tri.and_then(|t| geometry.materials.get(t.material as usize));
+            if let Some(a) = material.and_then(|m| m.lambertian_albedo()) {
+                (albedo[i], lambertian[i]) = (a, true);
+            }
+            tris[i] = tri;
             bary[i] = hit.bary;
             d[i] = rays.get(i).or(rays.first()).map_or(Vec3::Z, |r| r.1);
         }
@@ -219,29 +220,30 @@ impl Integrator<'_> {
             wo_local,
             back,
             plain,
+            lambertian,
+            f: Vec3s::from_fn(|i| albedo[i]).scale(F32s::splat(std::f32::consts::FRAC_1_PI)),
         }
     }
 
-    /// The next directions from the shading points `next` (with whether each picked an area
-    /// light): [`Self::scatter`] lane by lane, the Lambertian materials' warp, value and pdf in
-    /// lanes, the others' one lane at a time; the paths' starts at their second vertex.
+    /// The next directions from the shading points `next` (`points` in lanes):
+    /// [`Self::scatter`] lane by lane, the Lambertian materials' warp, value and pdf in lanes,
+    /// the others' one lane at a time; the paths' starts at their second vertex.
     #[inline(always)]
     fn scatter_lanes(
         &self,
-        next: &[Option<(Shading, bool)>; LANES],
+        (points, next): (&Points, &[Option<(Shading, bool)>; LANES]),
         rngs: &mut [Sampler],
     ) -> [Option<PathStart>; LANES] {
         let last = self.settings.max_depth == 1;
         let mut starts: [Option<PathStart>; LANES] = [const { None }; LANES];
         // Every lane draws its numbers in the path's order; Lambertian lanes warp them below.
         let mut u = [Vec2::ZERO; LANES];
-        let mut albedo = [None; LANES];
+        let mut lambertian = [false; LANES];
         for (i, lane) in next.iter().enumerate() {
             let Some((s, picked)) = lane else {
                 continue;
             };
-            albedo[i] = s.material.lambertian_albedo();
-            if albedo[i].is_none() {
+            if !points.lambertian[i] {
                 let next = self.scatter(s, &mut rngs[i], last);
                 // `path` multiplies its throughput, one, by the weight and ends where that is
                 // not finite.
@@ -257,38 +259,45 @@ impl Integrator<'_> {
                 continue;
             }
             let ([_u_lobe], u2) = rngs[i].uniforms_uniform2::<1>();
-            u[i] = u2;
+            (u[i], lambertian[i]) = (u2, true);
         }
-        if albedo.iter().all(Option::is_none) {
+        if !lambertian.contains(&true) {
             return starts;
         }
         // `Material::sample_direction` and `eval_pdf` of a Lambertian material, in lanes.
-        let frame = |i: usize| next[i].as_ref().map(|(s, _)| s.frame);
-        let frames = Frames {
-            t: Vec3s::from_fn(|i| frame(i).map_or(Vec3::X, |f| f.t)),
-            b: Vec3s::from_fn(|i| frame(i).map_or(Vec3::Y, |f| f.b)),
-            n: Vec3s::from_fn(|i| frame(i).map_or(Vec3::Z, |f| f.n)),
-        };
-        let ng = Vec3s::from_fn(|i| next[i].as_ref().map_or(Vec3::Z, |(s, _)| s.ng));
         let wi_local = sample_cosine_hemisphere_lanes(Vec2s::from_fn(|i| u[i]));
-        let wi = frames.to_world(wi_local);
-        let above = wi.dot(ng).test(F32s::splat(0.0), |a, b| a > b);
+        let wi = points.frames.to_world(wi_local);
+        let above = wi.dot(points.ng).test(F32s::splat(0.0), |a, b| a > b);
+        let rises = wi_local.z.test(F32s::splat(0.0), |a, b| a > b);
         let pdf = cosine_hemisphere_pdf_lanes(wi_local.z);
-        let f = Vec3s::from_fn(|i| albedo[i].unwrap_or(Vec3::ZERO))
-            .scale(F32s::splat(std::f32::consts::FRAC_1_PI));
-        let cos = wi_local.z.abs();
+        let (f, cos) = (points.f, wi_local.z.abs());
         let weight = Vec3s::new(f.x * cos / pdf, f.y * cos / pdf, f.z * cos / pdf);
+        // Before the last vertex, whether each direction meets a light polygon
+        // (`Self::nearest_light_polygon`).
+        let meets_light = (last && self.polygon_lights).then(|| {
+            let mut any = [false; LANES];
+            for light in &self.scene.geometry.lights {
+                let Some(polygon) = &light.polygon else {
+                    continue;
+                };
+                let hits = polygon.hits_lanes(points.x, wi);
+                for (any, &hit) in any.iter_mut().zip(&hits) {
+                    *any |= hit;
+                }
+            }
+            any
+        });
         for i in 0..LANES {
-            let (Some((s, picked)), Some(_)) = (&next[i], albedo[i]) else {
+            let Some((s, picked)) = next[i].as_ref().filter(|_| lambertian[i]) else {
                 continue;
             };
             let (wi, pdf, f) = (wi.lane(i), pdf.0[i], f.lane(i));
             // `Shading::origin`: above both the surface and the shading normal.
-            if !(above[i] && wi_local.z.0[i] > 0.0) {
+            if !(above[i] && rises[i]) {
                 continue;
             }
             let origin = s.x;
-            if last && self.polygon_lights && self.nearest_light_polygon(origin, wi).is_none() {
+            if meets_light.is_some_and(|m| !m[i]) {
                 continue;
             }
             let beta = weight.lane(i);
