@@ -67,7 +67,7 @@ impl Integrator<'_> {
         let geometry = &*self.scene.geometry;
         // The lanes whose first vertex the stages take.
         let staged = |i: usize| -> Option<&Hit> {
-            if self.settings.max_depth == 0 || self.guide.is_some() {
+            if self.settings.max_depth == 0 {
                 return None;
             }
             let hit = hits?.get(i)?.as_ref()?;
@@ -91,7 +91,20 @@ impl Integrator<'_> {
         // The lanes past their light samples: their shading points and whether each picked
         // an area light (its context filled, for MIS at the next vertex).
         let mut next: [Option<(Shading, bool)>; LANES] = [const { None }; LANES];
-        for i in 0..n {
+        if contexts.len() <= LANES {
+            // Too few contexts to hold (the tile renderer passes enough): one path at a time.
+            let mut own = PathContexts::new();
+            let contexts = contexts.first_mut().unwrap_or(&mut own);
+            for i in 0..n {
+                let ((o, d), hit) = (rays[i], hits.map(|h| h[i]));
+                queue.set_lane(i);
+                let rng = &mut rngs[i];
+                radiance[i] = self.radiance_queued(tracer, o, d, hit, rng, stats, contexts, queue);
+            }
+            return radiance;
+        }
+        let (held, spare) = contexts.split_at_mut(LANES);
+        for (i, held) in held.iter_mut().enumerate().take(n) {
             let (o, d) = rays[i];
             queue.set_lane(i);
             let staged = lanes[i].zip(points.as_ref()).filter(|(_, p)| p.plain[i]);
@@ -100,16 +113,16 @@ impl Integrator<'_> {
                 // The one-path integrator from the camera ray, with the contexts that no lane
                 // holds (one for all, as warm in the cache as the reference's).
                 let hit = hits.map(|h| h[i]);
-                let contexts = &mut contexts[LANES];
+                let contexts = &mut spare[0];
                 radiance[i] = self.radiance_queued(tracer, o, d, hit, rng, stats, contexts, queue);
                 continue;
             };
-            let contexts = &mut contexts[i];
+            let PathContexts { even, guide, .. } = held;
             // The light sample, per lane: `path` at its first vertex.
             stats.camera_rays += 1;
             stats.lane_vertices += 1;
             let tri = &geometry.triangles[hit.triangle as usize];
-            let shading = Shading {
+            let mut shading = Shading {
                 x: points.x.lane(i),
                 ng: points.ng.lane(i),
                 frame: points.frames.lane(i),
@@ -122,15 +135,15 @@ impl Integrator<'_> {
                 sigma_below: Vec3::ZERO,
                 continuation: Continuation::bsdf(),
             };
+            if let Some(openings) = &self.guide {
+                // `path`'s guided first bounce, in this lane's guide context.
+                let diffuse = shading.material.diffuse_probability(shading.wo_local.z);
+                let at = (shading.x, shading.pick_normal());
+                shading.continuation = Continuation::guided(openings, guide, at, diffuse);
+            }
             let from = queue.mark();
-            let direct = self.sample_direct::<T, false, _>(
-                tracer,
-                &shading,
-                rng,
-                stats,
-                &mut contexts.even,
-                queue,
-            );
+            let direct =
+                self.sample_direct::<T, false, _>(tracer, &shading, rng, stats, even, queue);
             let picked = direct.is_some_and(|d| d.context_filled);
             let l = &mut radiance[i];
             queue.close(l, from, Vec3::ONE, direct.map_or(Vec3::ZERO, |d| d.l));
@@ -243,7 +256,8 @@ impl Integrator<'_> {
             let Some((s, picked)) = lane else {
                 continue;
             };
-            if !points.lambertian[i] {
+            // The BSDF alone: a guided continuation's mixture draws one lane at a time.
+            if !points.lambertian[i] || s.continuation.share() > 0.0 {
                 let next = self.scatter(s, &mut rngs[i], last);
                 // `path` multiplies its throughput, one, by the weight and ends where that is
                 // not finite.
