@@ -470,10 +470,11 @@ impl<'a> Integrator<'a> {
         self.path::<T, false, _>(tracer, start, rng, stats, contexts, shadows)
     }
 
-    /// The radiance a path gathers from `origin` along `dir`, whose first hit may be traced
-    /// ahead (`camera_hit`, as in [`Self::radiance_from`]). With `at_pane`, that hit is thin
-    /// glass the path reflects at instead of crossing: a camera ray's pane reflection
-    /// ([`Self::cross_panes`]).
+    /// The radiance a path gathers from `start`: a ray whose first hit may be traced ahead
+    /// (as in [`Self::radiance_from`]; with `at_pane`, that hit is thin glass the path reflects
+    /// at instead of crossing: a camera ray's pane reflection, [`Self::cross_panes`]), or a
+    /// later vertex's ray with the path's throughput and previous vertex (the packet's stages,
+    /// `packet`).
     #[allow(clippy::too_many_arguments)]
     #[inline(always)]
     pub(super) fn path<T: Tracer, const GLASS: bool, Q: Shadows>(
