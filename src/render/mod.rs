@@ -192,7 +192,6 @@ fn tile_samples<T: Tracer, const P: usize, const STAGED: bool>(
     let (x0, y0, w, h) = tiles.rect(tile);
     let size = Vec2::new(tiles.width as f32, tiles.height as f32);
     let mut pixels = Vec::with_capacity((w * h) as usize);
-    let mut contexts = PathContexts::new();
     // The tile's shading points lie close together: their shadow rays share blockers.
     let tracer = &ShadowCache::new(tracer);
     let samplers = settings.sampler.pass(settings.seed, pass);
@@ -200,15 +199,13 @@ fn tile_samples<T: Tracer, const P: usize, const STAGED: bool>(
     // same path through the BVH; each path then continues from its hit, pixel by pixel.
     let traced = integrator.camera_hits_traced();
     let mut queue = ShadowQueue::new();
-    // Each lane of a staged packet keeps its path's light contexts until its second vertex,
-    // and paths run one at a time share one more: the thread's own, made once (copied in for
-    // every tile, they took 6% of a render).
-    let mut lane_contexts = match STAGED {
-        true => LANE_CONTEXTS.take(),
-        false => Vec::new(),
-    };
-    while lane_contexts.len() < P + 1 && STAGED {
-        lane_contexts.push(PathContexts::new());
+    // The thread's light contexts, made once (copied in for every tile, a staged packet's took
+    // 6% of a render): each lane of a staged packet keeps its path's until its second vertex,
+    // and paths run one at a time share one more; the one-path schedule uses one.
+    let mut contexts = CONTEXTS.take();
+    let needed = if STAGED { P + 1 } else { 1 };
+    while contexts.len() < needed {
+        contexts.push(PathContexts::new());
     }
     for y in y0..y0 + h {
         for x in (x0..x0 + w).step_by(P) {
@@ -237,7 +234,7 @@ fn tile_samples<T: Tracer, const P: usize, const STAGED: bool>(
                     traced.then_some(&hits[..n]),
                     &mut rngs[..n],
                     stats,
-                    &mut lane_contexts,
+                    &mut contexts,
                     &mut queue,
                 );
                 queue.resolve(tracer, &mut radiance[..n]);
@@ -249,21 +246,18 @@ fn tile_samples<T: Tracer, const P: usize, const STAGED: bool>(
             for (i, rng) in rngs.iter_mut().enumerate().take(n) {
                 let hit = traced.then_some(hits[i]);
                 let (o, d) = (origins[i], dirs[i]);
-                let l = integrator.radiance_from(tracer, o, d, hit, rng, stats, &mut contexts);
+                let l = integrator.radiance_from(tracer, o, d, hit, rng, stats, &mut contexts[0]);
                 pixels.push(stats.finite_or_counted(l));
             }
         }
     }
-    if STAGED {
-        LANE_CONTEXTS.set(lane_contexts);
-    }
+    CONTEXTS.set(contexts);
     pixels
 }
 
 thread_local! {
-    /// The light contexts of a staged packet's lanes ([`tile_samples`]), kept by each thread
-    /// from tile to tile.
-    static LANE_CONTEXTS: std::cell::RefCell<Vec<PathContexts>> =
+    /// The light contexts of a thread's paths ([`tile_samples`]), kept from tile to tile.
+    static CONTEXTS: std::cell::RefCell<Vec<PathContexts>> =
         const { std::cell::RefCell::new(Vec::new()) };
 }
 
