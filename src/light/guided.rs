@@ -169,6 +169,44 @@ impl SearchIndex {
     }
 }
 
+/// A nondecreasing sequence that [`first_above`] reads. A trait with `#[inline(always)]`
+/// reads rather than closures: closures cannot be marked so on stable, and LLVM left them out of
+/// line (compiled for the baseline) inside the packet integrator's AVX2 function.
+trait Ramp {
+    fn at(&self, j: usize) -> f64;
+}
+
+impl Ramp for [f64] {
+    #[inline(always)]
+    fn at(&self, j: usize) -> f64 {
+        self[j]
+    }
+}
+
+impl<R: Ramp + ?Sized> Ramp for &R {
+    #[inline(always)]
+    fn at(&self, j: usize) -> f64 {
+        (**self).at(j)
+    }
+}
+
+/// The marginal `M` in `α` at column edge `c` over `β0 < β < β1`, from the summed-area rows
+/// around `β0` and `β1` (`[s0, s0 + 1, s1, s1 + 1]`) and the fractions `g0`, `g1` of their
+/// cells below `β0`, `β1`.
+struct Marginal<'a> {
+    rows: [&'a [f64]; 4],
+    g: [f64; 2],
+}
+
+impl Ramp for Marginal<'_> {
+    #[inline(always)]
+    fn at(&self, c: usize) -> f64 {
+        let [s0, s0n, s1, s1n] = self.rows;
+        let [g0, g1] = self.g;
+        (s1[c] + g1 * (s1n[c] - s1[c])) - (s0[c] + g0 * (s0n[c] - s0[c]))
+    }
+}
+
 /// The first `j` in `from..len` with `value(j) > target` (`len` if none) for a nondecreasing
 /// `value`, given it at every `STRIDE²`-th `j` (`coarse(k) = value(k·STRIDE²)`) and every
 /// `STRIDE`-th (`fine(k) = value(k·STRIDE)`): three short scans, the first from the block of
@@ -178,9 +216,9 @@ fn first_above(
     target: f64,
     from: usize,
     len: usize,
-    coarse: impl Fn(usize) -> f64,
-    fine: impl Fn(usize) -> f64,
-    value: impl Fn(usize) -> f64,
+    coarse: impl Ramp,
+    fine: impl Ramp,
+    value: impl Ramp,
 ) -> usize {
     if from >= len {
         return len;
@@ -188,17 +226,17 @@ fn first_above(
     let (coarse_len, fine_len) = (len.div_ceil(STRIDE * STRIDE), len.div_ceil(STRIDE));
     // Invariant: every `j` in `from..` below the scanned position has `value(j) <= target`.
     let mut b = from / (STRIDE * STRIDE);
-    while b + 1 < coarse_len && coarse(b + 1) <= target {
+    while b + 1 < coarse_len && coarse.at(b + 1) <= target {
         b += 1;
     }
     let mut m = (b * STRIDE).max(from / STRIDE);
     let fine_end = ((b + 1) * STRIDE).min(fine_len);
-    while m + 1 < fine_end && fine(m + 1) <= target {
+    while m + 1 < fine_end && fine.at(m + 1) <= target {
         m += 1;
     }
     let mut j = (m * STRIDE).max(from);
     let end = ((m + 1) * STRIDE).min(len);
-    while j < end && value(j) <= target {
+    while j < end && value.at(j) <= target {
         j += 1;
     }
     j
@@ -393,7 +431,7 @@ impl GuidedTable {
     }
 
     /// `T` on cell `(c, r)`: the column's running integral over the cell, over its width.
-    #[inline]
+    #[inline(always)]
     fn weight(&self, c: usize, r: usize) -> f64 {
         let at = c * (self.beta.cells() + 1) + r;
         (self.column_cdf[at + 1] - self.column_cdf[at]) / self.beta.width(r)
@@ -461,32 +499,29 @@ impl GuidedTable {
     fn sample_alpha(&self, b: &GuidedBox, u: f64) -> Option<(f64, usize)> {
         let m = self.alpha.cells() + 1;
         let [(r0, g0), (r1, g1)] = b.beta_cells;
-        // M at column edge c from the rows around β0 and β1: the integral over α < edge c,
-        // β0 < β < β1; the index's rows give it at every STRIDE-th and STRIDE²-th edge.
-        let marginal_in = |rows: [&[f64]; 4], c: usize| {
-            let [s0, s0n, s1, s1n] = rows;
-            (s1[c] + g1 * (s1n[c] - s1[c])) - (s0[c] + g0 * (s0n[c] - s0[c]))
-        };
+        // M at column edge c; the index's rows give it at every STRIDE-th and STRIDE²-th edge.
         let around = [r0, r0 + 1, r1, r1 + 1];
-        let rows = around.map(|r| &self.summed[r * m..(r + 1) * m]);
-        let fine = around.map(|r| self.summed_index.fine(r));
-        let coarse = around.map(|r| self.summed_index.coarse(r));
-        let marginal = |c: usize| marginal_in(rows, c);
+        let g = [g0, g1];
+        let marginal = Marginal {
+            rows: around.map(|r| &self.summed[r * m..(r + 1) * m]),
+            g,
+        };
+        let fine = Marginal {
+            rows: around.map(|r| self.summed_index.fine(r)),
+            g,
+        };
+        let coarse = Marginal {
+            rows: around.map(|r| self.summed_index.coarse(r)),
+            g,
+        };
         let [(c0, f0), (c1, _)] = b.alpha_cells;
-        let at_start = marginal(c0) + f0 * (marginal(c0 + 1) - marginal(c0));
+        let at_start = marginal.at(c0) + f0 * (marginal.at(c0 + 1) - marginal.at(c0));
         let target = at_start + u * b.integral;
         // The first column in [c0, c1] whose upper edge's M passes the target (else c1).
-        let above = first_above(
-            target,
-            c0 + 1,
-            c1 + 2,
-            |k| marginal_in(coarse, k),
-            |k| marginal_in(fine, k),
-            marginal,
-        );
+        let above = first_above(target, c0 + 1, c1 + 2, coarse, fine, &marginal);
         let c = above.max(c0 + 1).min(c1 + 1) - 1;
         let (e0, width) = (self.alpha.edges[c], self.alpha.width(c));
-        let (m0, m1) = (marginal(c), marginal(c + 1));
+        let (m0, m1) = (marginal.at(c), marginal.at(c + 1));
         let density = (m1 - m0) / width;
         if !(density > 0.0 && density.is_finite()) {
             return None;
@@ -508,20 +543,18 @@ impl GuidedTable {
         // The first row in [r0, r1] whose upper edge's running integral passes the target
         // (else r1).
         let (fine, coarse) = (self.column_index.fine(c), self.column_index.coarse(c));
-        let above = first_above(
-            target,
-            r0 + 1,
-            r1 + 2,
-            |k| coarse[k],
-            |k| fine[k],
-            |j| cdf[j],
-        );
+        let above = first_above(target, r0 + 1, r1 + 2, coarse, fine, cdf);
         let r = above.max(r0 + 1).min(r1 + 1) - 1;
         let e0 = self.beta.edges[r];
         let start = beta[0].max(e0);
         let end = beta[1].min(self.beta.edges[r + 1]).max(start);
         let weight = self.weight(c, r);
-        (weight > 0.0).then(|| ((e0 + (target - cdf[r]) / weight).clamp(start, end), r))
+        // An `if`, not `bool::then` with a closure, which LLVM left out of line (see `Ramp`).
+        if weight > 0.0 {
+            Some(((e0 + (target - cdf[r]) / weight).clamp(start, end), r))
+        } else {
+            None
+        }
     }
 }
 
@@ -680,21 +713,13 @@ mod tests {
                         let target = -0.5 + (v + 1.0) * t as f64 / 199.0;
                         let below = values[..end].partition_point(|&x| x <= target);
                         let expected = below.max(from.min(end));
-                        let found = first_above(
-                            target,
-                            from,
-                            end,
-                            |k| coarse[k],
-                            |k| fine[k],
-                            |j| values[j],
-                        );
+                        let found = first_above(target, from, end, coarse, fine, &values[..]);
                         assert_eq!(
                             found, expected,
                             "len {len}, from {from}, end {end}, {target}"
                         );
                         let (wf, wc) = (wrong.fine(0), wrong.coarse(0));
-                        let misled =
-                            first_above(target, from, end, |k| wc[k], |k| wf[k], |j| values[j]);
+                        let misled = first_above(target, from, end, wc, wf, &values[..]);
                         wrong_index_differs |= misled != expected;
                     }
                 }
