@@ -172,7 +172,8 @@ fn print_summary(film: &Film, stats: &Stats, elapsed: Duration) {
     );
     println!(
         "renderer compiled for: {} (PORTALVIEW_ISA=baseline forces the baseline); first \
-         vertices shaded in a packet's lanes: {:.1}% (PORTALVIEW_INTEGRATOR=path: none)",
+         vertices shaded in a packet's lanes: {:.1}% (staged where a material is Lambertian; \
+         PORTALVIEW_INTEGRATOR=path or staged forces one)",
         Isa::detect().name(),
         100.0 * stats.lane_vertices as f64 / stats.camera_rays.max(1) as f64
     );

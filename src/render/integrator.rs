@@ -239,6 +239,9 @@ pub struct Integrator<'a> {
     /// The openings paths continue through ([`GuideBounces::On`], a bounce to follow, and
     /// openings with light behind them).
     guide: Option<BounceGuide>,
+    /// Some material that reflects and does not emit is exactly Lambertian
+    /// ([`Self::stages_pay`]).
+    lambertian: bool,
 }
 
 /// The most smooth dielectric events (reflections and refractions at a volume's boundary,
@@ -291,6 +294,9 @@ impl<'a> Integrator<'a> {
             panes: scene.geometry.has_panes,
             volumes,
             guide,
+            lambertian: (scene.geometry.materials.iter()).any(|m| {
+                m.lambertian_albedo().is_some() && !m.is_black() && m.emission == Vec3::ZERO
+            }),
             // A cut-out light lets rays through its holes: it must be found by tracing.
             polygon_lights: area_lights.len() <= DIRECT_LIGHT_TEST_LIMIT
                 && area_lights.iter().all(|l| l.polygon.is_some())
@@ -446,6 +452,15 @@ impl<'a> Integrator<'a> {
     /// without glass or volumes, whose shadow rays answer only "blocked" or not.
     pub fn queues_shadows(&self) -> bool {
         !(self.panes || self.volumes)
+    }
+
+    /// Whether the staged schedule pays ([`crate::render::Schedule::detect`]): where paths
+    /// queue their shadow rays and some material is exactly Lambertian, whose first vertices
+    /// the packet shades in lanes. Without one the stage only adds its bookkeeping: the
+    /// built-ins whose materials all have a specular layer ran 2–3% slower staged
+    /// (`docs/performance.md`, the staged schedule).
+    pub fn stages_pay(&self) -> bool {
+        self.queues_shadows() && self.lambertian
     }
 
     /// [`Self::radiance_from`] of a path that queues what it gathers in `shadows` (where

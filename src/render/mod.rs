@@ -25,7 +25,7 @@ use shadows::ShadowQueue;
 use stats::Stats;
 
 /// How the tile renderer runs a packet's paths. Both give the same pixels, bit for bit
-/// (`tests/core.rs`); `PORTALVIEW_INTEGRATOR=path` in the environment chooses the reference
+/// (`tests/core.rs`); `PORTALVIEW_INTEGRATOR=path` (or `staged`) in the environment forces one
 /// for every command and the viewer, to compare the two.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Schedule {
@@ -41,25 +41,28 @@ pub enum Schedule {
 impl Schedule {
     pub const ALL: [Schedule; 2] = [Schedule::Staged, Schedule::Paths];
 
-    /// The schedule `PORTALVIEW_INTEGRATOR` names (`staged`, the default, or `path`), read
-    /// once; another value is reported on stderr and ignored.
-    pub fn detect() -> Schedule {
-        static DETECTED: std::sync::OnceLock<Schedule> = std::sync::OnceLock::new();
-        *DETECTED.get_or_init(|| {
-            let Some(value) = std::env::var_os("PORTALVIEW_INTEGRATOR") else {
-                return Schedule::Staged;
-            };
-            match Schedule::ALL.into_iter().find(|s| value == s.name()) {
-                Some(schedule) => schedule,
-                None => {
-                    eprintln!(
-                        "warning: PORTALVIEW_INTEGRATOR={}: not `staged` or `path`, ignored",
-                        value.to_string_lossy()
-                    );
-                    Schedule::Staged
-                }
+    /// The schedule for `integrator`: the one `PORTALVIEW_INTEGRATOR` names (`staged` or
+    /// `path`, read once; another value is reported on stderr and ignored), else staged where
+    /// its scene has a material the stages shade in lanes ([`Integrator::stages_pay`]), else
+    /// the reference, which is then the faster.
+    pub fn detect(integrator: &Integrator) -> Schedule {
+        static FORCED: std::sync::OnceLock<Option<Schedule>> = std::sync::OnceLock::new();
+        let forced = FORCED.get_or_init(|| {
+            let value = std::env::var_os("PORTALVIEW_INTEGRATOR")?;
+            let found = Schedule::ALL.into_iter().find(|s| value == s.name());
+            if found.is_none() {
+                eprintln!(
+                    "warning: PORTALVIEW_INTEGRATOR={}: not `staged` or `path`, ignored",
+                    value.to_string_lossy()
+                );
             }
-        })
+            found
+        });
+        match (forced, integrator.stages_pay()) {
+            (Some(schedule), _) => *schedule,
+            (None, true) => Schedule::Staged,
+            (None, false) => Schedule::Paths,
+        }
     }
 
     /// As `PORTALVIEW_INTEGRATOR` names it.
@@ -120,7 +123,7 @@ pub fn render_tile<T: Tracer>(
     pass: u32,
     stats: &mut Stats,
 ) -> Vec<Vec3> {
-    let (isa, schedule) = (Isa::detect(), Schedule::detect());
+    let (isa, schedule) = (Isa::detect(), Schedule::detect(integrator));
     render_tile_scheduled(
         isa, schedule, integrator, tracer, rays, tiles, tile, pass, stats,
     )
