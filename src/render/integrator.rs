@@ -457,7 +457,7 @@ impl<'a> Integrator<'a> {
     /// Whether the staged schedule pays ([`crate::render::Schedule::detect`]): where paths
     /// queue their shadow rays and some material is exactly Lambertian, whose first vertices
     /// the packet shades in lanes. Without one the stage only adds its bookkeeping: the
-    /// built-ins whose materials all have a specular layer ran 2–3% slower staged
+    /// built-ins whose materials all have a specular layer ran up to 5% slower staged
     /// (`docs/performance.md`, the staged schedule).
     pub fn stages_pay(&self) -> bool {
         self.queues_shadows() && self.lambertian
